@@ -1,0 +1,106 @@
+"""Shared types: node types, shape-documented array aliases and small frozen pytrees.
+
+Array aliases document shapes in their names and docstrings; they are plain
+``jax.Array`` / ``np.ndarray`` at run time (no runtime shape checking).
+"""
+
+from __future__ import annotations
+
+from enum import IntEnum
+from typing import TypeAlias
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from flax import struct
+
+__all__ = [
+    "NodeType",
+    "NUM_NODE_TYPES",
+    "Positions",
+    "Trajectory",
+    "NodeMask",
+    "NodeTypes",
+    "ModelInput",
+    "TargetStats",
+    "node_type_one_hot",
+]
+
+
+class NodeType(IntEnum):
+    """Kind of a node. The vessel wall is rigid; only clot nodes move."""
+
+    VESSEL = 0
+    CLOT = 1
+
+
+NUM_NODE_TYPES: int = len(NodeType)
+
+Positions: TypeAlias = jax.Array
+"""``[n_nodes, 3]`` float positions of one frame."""
+Trajectory: TypeAlias = jax.Array | np.ndarray
+"""``[n_frames, n_nodes, 3]`` float positions of one simulation."""
+NodeMask: TypeAlias = jax.Array
+"""``[n_nodes]`` bool, True for real (not padded) nodes."""
+NodeTypes: TypeAlias = jax.Array
+"""``[n_nodes]`` int, values of :class:`NodeType`."""
+
+
+def node_type_one_hot(node_type: NodeTypes) -> jax.Array:
+    """One-hot encode node types: ``[n_nodes] -> [n_nodes, NUM_NODE_TYPES]`` float32."""
+    return jax.nn.one_hot(node_type, NUM_NODE_TYPES, dtype=jnp.float32)
+
+
+@struct.dataclass
+class ModelInput:
+    """What every model sees for one sample (one frame), in scaled [-1, 1] coordinates.
+
+    Attributes:
+        positions: ``[n_nodes, 3]`` current positions s_t.
+        velocity: ``[n_nodes, 3]`` v_t = s_t - s_{t-1}.
+        node_type: ``[n_nodes]`` int32 :class:`NodeType` values (padded nodes: VESSEL).
+        mask: ``[n_nodes]`` bool, True for real nodes, False for padding.
+    """
+
+    positions: jax.Array
+    velocity: jax.Array
+    node_type: jax.Array
+    mask: jax.Array
+
+    @property
+    def n_nodes(self) -> int:
+        return self.positions.shape[-2]
+
+    @property
+    def clot_mask(self) -> jax.Array:
+        """``[n_nodes]`` bool: real clot nodes (the nodes a loss or metric may see)."""
+        return self.mask & (self.node_type == NodeType.CLOT)
+
+
+@struct.dataclass
+class TargetStats:
+    """Normalisation statistics of the per-node update (acceleration), from the training split.
+
+    The model predicts ``(a - mean) / std`` per axis, with
+    ``a = s_{t+1} - 2 s_t + s_{t-1}`` in scaled coordinates.
+
+    Attributes:
+        mean: ``[3]`` float32.
+        std: ``[3]`` float32, strictly positive.
+    """
+
+    mean: jax.Array
+    std: jax.Array
+
+    def normalize(self, accel: jax.Array) -> jax.Array:
+        return (accel - self.mean) / self.std
+
+    def denormalize(self, out: jax.Array) -> jax.Array:
+        return out * self.std + self.mean
+
+    def to_dict(self) -> dict:
+        return {"mean": np.asarray(self.mean).tolist(), "std": np.asarray(self.std).tolist()}
+
+    @classmethod
+    def from_dict(cls, d: dict) -> TargetStats:
+        return cls(mean=jnp.asarray(d["mean"], jnp.float32), std=jnp.asarray(d["std"], jnp.float32))
