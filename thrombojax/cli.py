@@ -21,6 +21,280 @@ _Registrar = Callable[["argparse._SubParsersAction"], None]
 _REGISTRARS: list[_Registrar] = []
 
 
+def _add_info(sub) -> None:
+    p = sub.add_parser(
+        "info",
+        help="summarise a dataset file (and validate every simulation)",
+        description=(
+            "Read and validate every simulation of a dataset file and print a summary: "
+            "simulations, frames, nodes, clot fraction, bounding box, dt, solver and reference "
+            "wall times. A malformed file gives a one-line error and exit status 2."
+        ),
+    )
+    p.add_argument("file", metavar="FILE", help="dataset .h5 file")
+    p.add_argument("--progress", action="store_true", help="show a progress bar")
+    p.set_defaults(func=_run_info)
+
+
+def _run_info(args) -> int:
+    from thrombojax.io.info import describe_dataset
+
+    print(describe_dataset(args.file, progress=args.progress))
+    return 0
+
+
+def _import_common(p) -> None:
+    p.add_argument("--out", required=True, metavar="FILE", help="dataset .h5 file to write")
+    p.add_argument("--name", action="append", metavar="NAME", dest="names",
+                   help="simulation name; repeat once per simulation, in order "
+                        "(default: folder / file names)")
+    p.add_argument("--dataset-name", metavar="NAME", help="dataset name (default: FILE's stem)")
+    p.add_argument("--dt", type=float, help="time step between stored frames, stored per sim")
+    p.add_argument("--reference-time", type=float, metavar="SECONDS",
+                   help="recorded solver wall time per simulation (e.g. Abaqus), for speed-ups")
+    p.add_argument("--units", default="vessel radius", help="unit of the coordinates")
+    p.add_argument("--force", action="store_true", help="overwrite FILE if it exists")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+
+
+def _add_import(sub) -> None:
+    p = sub.add_parser(
+        "import",
+        help="import solver output (VTU/VTK/XDMF series, Abaqus .inp + frames) into a dataset",
+        description=(
+            "Convert existing simulation output into one thrombojax dataset file (several "
+            "simulations per call). Every simulation is validated; the file is written "
+            "atomically. See 'thrombojax import vtu --help' and 'thrombojax import abaqus --help'."
+        ),
+    )
+    kinds = p.add_subparsers(dest="kind", metavar="KIND", required=True)
+    m = kinds.add_parser(
+        "vtu",
+        aliases=["mesh"],
+        help="one simulation per folder / quoted glob of VTU, VTK or XDMF frames",
+        description=(
+            "Each SOURCE is one simulation: a folder of frame files (.vtu/.vtk/.xdmf/.xmf, one "
+            "per frame, same points, natural file-name order) or a quoted glob like "
+            "'run1/*.vtu'. Node type: from the point-data array --node-type-array (default: "
+            "'node_type' when present, values 0 vessel / 1 clot), else from the cells of the "
+            "first frame (tetra = clot, triangle = vessel wall)."
+        ),
+    )
+    m.add_argument("sources", nargs="+", metavar="SOURCE", help="frames folder or quoted glob")
+    m.add_argument("--node-type-array", metavar="ARRAY",
+                   help="point-data array with the node type (then required in every source)")
+    _import_common(m)
+    m.set_defaults(func=_run_import_mesh)
+    a = kinds.add_parser(
+        "abaqus",
+        help="Abaqus .inp mesh + per-frame node coordinates exported from the .odb",
+        description=(
+            "One simulation per --frames: a [T, N, 3] .npy file, or a folder of frame_0000.npy "
+            "([N, 3]) or frame_0000.csv files (rows 'x,y,z' in .inp node order, or "
+            "'label,x,y,z' in any order; optional header). The .inp must be flat (one *Node "
+            "block). Clot / vessel nodes come from element or node sets: --clot-set / "
+            "--vessel-set, by default sets named like *CLOT* / *VESSEL*, *WALL*, *ARTERY*, "
+            "else element types (C3D4 tetra = clot, triangles = vessel wall)."
+        ),
+    )
+    a.add_argument("--inp", action="append", required=True, metavar="FILE",
+                   help=".inp mesh; once for all simulations or once per --frames")
+    a.add_argument("--frames", action="append", required=True, metavar="PATH",
+                   help="coordinates of one simulation (.npy or folder); repeat per simulation")
+    a.add_argument("--clot-set", action="append", metavar="SET", help="clot element/node set")
+    a.add_argument("--vessel-set", action="append", metavar="SET", help="vessel element/node set")
+    _import_common(a)
+    a.set_defaults(func=_run_import_abaqus)
+
+
+def _run_import_mesh(args) -> int:
+    from thrombojax.io.meshio_import import import_mesh_series
+
+    out = import_mesh_series(
+        args.sources, args.out, names=args.names, dataset_name=args.dataset_name,
+        node_type_array=args.node_type_array, dt=args.dt,
+        reference_wall_time_s=args.reference_time, units=args.units, overwrite=args.force,
+        progress=not args.quiet,
+    )
+    print(f"wrote {out}")
+    return 0
+
+
+def _run_import_abaqus(args) -> int:
+    from thrombojax.io.meshio_import import import_abaqus
+
+    out = import_abaqus(
+        args.inp, args.frames, args.out, names=args.names, dataset_name=args.dataset_name,
+        clot_sets=args.clot_set, vessel_sets=args.vessel_set, dt=args.dt,
+        reference_wall_time_s=args.reference_time, units=args.units, overwrite=args.force,
+        progress=not args.quiet,
+    )
+    print(f"wrote {out}")
+    return 0
+
+
+_REGISTRARS += [_add_info, _add_import]
+
+
+# ---- [F] evaluate, rollout, export, bench ---------------------------------------------------
+
+
+def _add_evaluate(sub) -> None:
+    p = sub.add_parser(
+        "evaluate",
+        help="single-step MSE of a trained run on its test split (JSON + markdown table)",
+        description=(
+            "Teacher-forced one-step prediction on every window of the run's test split: MSE over "
+            "clot nodes in scaled [-1, 1] coordinates (the study's metric), beside the "
+            "constant-velocity baseline. Writes evaluate.json and evaluate.md."
+        ),
+    )
+    p.add_argument("--run", required=True, metavar="DIR", help="training run directory")
+    p.add_argument("--dataset", required=True, metavar="FILE", help="dataset .h5 file")
+    p.add_argument("--out", metavar="DIR", help="output folder (default: the run directory)")
+    p.add_argument("--split", default="test", choices=("train", "val", "test", "all"))
+    p.add_argument("--checkpoint", default="best", choices=("best", "last"))
+    p.add_argument("--skip", type=int, default=0, help="skip windows whose middle frame < SKIP")
+    p.add_argument("--nodes", type=int, help="fixed seeded node subset (default: the run's "
+                   "nodes_per_sample, else all nodes)")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(func=_run_evaluate)
+
+
+def _run_evaluate(args) -> int:
+    from thrombojax.evaluate import evaluate_run
+
+    res = evaluate_run(args.run, args.dataset, out_dir=args.out, split=args.split,
+                       which=args.checkpoint, skip=args.skip, n_nodes=args.nodes,
+                       progress=not args.quiet)
+    print(res["table"], end="")
+    print(f"wrote {args.out or args.run}/evaluate.json and evaluate.md")
+    return 0
+
+
+def _add_rollout(sub) -> None:
+    p = sub.add_parser(
+        "rollout",
+        help="roll a trained run out: trajectory HDF5, ParaView series, GIF, error plots",
+        description=(
+            "Autoregressive rollout (one compiled jax.lax.scan) of a trained run on dataset "
+            "simulations, starting after the study's skipped frames (5 BendVessel, 40 ClotEntry). "
+            "Writes per simulation: <sim>_rollout.h5 (dataset schema), <sim>_prediction.xdmf and "
+            "<sim>_truth.xdmf (node types and error as point data), <sim>_rollout.gif (prediction "
+            "beside ground truth), <sim>_error.png and <sim>_metrics.png (with the "
+            "constant-velocity baseline), plus rollout.json and rollout.md."
+        ),
+    )
+    p.add_argument("--run", required=True, metavar="DIR", help="training run directory")
+    p.add_argument("--dataset", required=True, metavar="FILE", help="dataset .h5 file")
+    p.add_argument("--out", required=True, metavar="DIR", help="output folder")
+    p.add_argument("--sim", action="append", metavar="NAME",
+                   help="simulation to roll out (repeatable; default: the run's test split)")
+    p.add_argument("--split", default="test", choices=("train", "val", "test", "all"))
+    p.add_argument("--checkpoint", default="best", choices=("best", "last"))
+    p.add_argument("--skip", type=int, help="skipped frames (default 5, or 40 for ClotEntry)")
+    p.add_argument("--steps", type=int, help="rollout steps (default: to the last frame)")
+    p.add_argument("--nodes", type=int, help="fixed seeded node subset (the study: 2048 on "
+                   "ClotEntry; default all nodes)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the node subset")
+    p.add_argument("--format", default="xdmf", choices=("xdmf", "vtu"), help="ParaView format")
+    p.add_argument("--no-gif", action="store_true", help="skip the animation")
+    p.set_defaults(func=_run_rollout)
+
+
+def _run_rollout(args) -> int:
+    from thrombojax.rollout_report import rollout_run
+
+    res = rollout_run(args.run, args.dataset, args.out, simulations=args.sim, split=args.split,
+                      which=args.checkpoint, skip=args.skip, n_steps=args.steps,
+                      n_nodes=args.nodes, seed=args.seed, format=args.format,
+                      gif=not args.no_gif)
+    print(res["table"], end="")
+    print(f"wrote rollouts to {args.out}/")
+    return 0
+
+
+def _add_export(sub) -> None:
+    p = sub.add_parser(
+        "export",
+        help="export dataset simulations or saved rollouts to XDMF / VTU time series",
+        description=(
+            "Write a ParaView time series (moving points, node_type and displacement as point "
+            "data, clot tetrahedra and wall triangles when present) for simulations of a "
+            "dataset file or of a <sim>_rollout.h5 written by 'thrombojax rollout'."
+        ),
+    )
+    p.add_argument("file", metavar="FILE", help="dataset or rollout .h5 file")
+    p.add_argument("--out", required=True, metavar="DIR", help="output folder")
+    p.add_argument("--sim", action="append", metavar="NAME",
+                   help="simulation to export (repeatable; default: all)")
+    p.add_argument("--format", default="xdmf", choices=("xdmf", "vtu"))
+    p.set_defaults(func=_run_export)
+
+
+def _run_export(args) -> int:
+    from thrombojax.io.export import export_file
+
+    for path in export_file(args.file, args.out, names=args.sim, format=args.format):
+        print(f"wrote {path}")
+    return 0
+
+
+def _add_bench(sub) -> None:
+    p = sub.add_parser(
+        "bench",
+        help="time rollouts at the study's sizes; speed-up over Abaqus and our solver",
+        description=(
+            "For each model and size (bendvessel: 35 steps x 977 nodes; clotentry: 160 x 2048; "
+            "clotentry-full: 160 x 27000) report compile time, steady-state rollout time, "
+            "per-step time, the time scaled to the whole simulation and the speed-up over the "
+            "study's Abaqus times (180 s / 1500 s) and our solver's measured time. Models are "
+            "random-initialised (timing needs no trained weights) unless --run is given. "
+            "Writes bench.json and bench.md with device, versions and date."
+        ),
+    )
+    p.add_argument("--models", default="mgn,transolver,erwin", help="comma-separated models")
+    p.add_argument("--cases", default="bendvessel,clotentry,clotentry-full",
+                   help="comma-separated sizes: bendvessel, clotentry, clotentry-full")
+    p.add_argument("--run", action="append", metavar="MODEL=DIR", default=[],
+                   help="time a trained run for MODEL (repeatable)")
+    p.add_argument("--tiny", action="store_true", help="tiny configs instead of the study's")
+    p.add_argument("--nodes", type=int, help="override every case's node count")
+    p.add_argument("--max-steps", type=int, help="time at most this many steps; extrapolate")
+    p.add_argument("--repeats", type=int, default=3, help="steady-state repetitions (median)")
+    p.add_argument("--dataset", metavar="FILE", help="take positions from this dataset")
+    p.add_argument("--solver-dataset", action="append", default=[], metavar="FILE",
+                   help="dataset whose solver_wall_time_s is our solver's time (repeatable)")
+    p.add_argument("--measure-solver", action="append", default=[], metavar="PRESET",
+                   help="run this solver preset once now to time our solver (repeatable)")
+    p.add_argument("--out", metavar="DIR", help="write bench.json and bench.md here")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(func=_run_bench)
+
+
+def _run_bench(args) -> int:
+    from thrombojax.bench import bench
+    from thrombojax.errors import ConfigError
+
+    runs = {}
+    for item in args.run:
+        if "=" not in item:
+            raise ConfigError(f"--run expects MODEL=DIR, got '{item}'")
+        name, path = item.split("=", 1)
+        runs[name] = path
+    res = bench(tuple(m for m in args.models.split(",") if m),
+                tuple(c for c in args.cases.split(",") if c), runs=runs, tiny=args.tiny,
+                n_nodes=args.nodes, max_steps=args.max_steps, repeats=args.repeats,
+                dataset=args.dataset, solver_datasets=tuple(args.solver_dataset),
+                measure_solver=tuple(args.measure_solver), out_dir=args.out,
+                progress=not args.quiet)
+    print(res["table"], end="")
+    return 0
+
+
+_REGISTRARS += [_add_evaluate, _add_rollout, _add_export, _add_bench]
+
+
 def build_parser() -> argparse.ArgumentParser:
     """Build the argument parser with every working subcommand."""
     parser = argparse.ArgumentParser(

@@ -1,0 +1,149 @@
+"""Tiny simulations and a corpus of malformed dataset files, shared by the io/data tests."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+from thrombojax.io.hdf5 import write_dataset
+from thrombojax.io.schema import Simulation
+
+CLOT_POINTS = 0.3 * np.array(
+    [[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1], [1, 1, 1]], dtype=np.float64
+)
+CLOT_TETS = np.array([[0, 1, 2, 3], [1, 2, 3, 4]], dtype=np.int32)
+
+
+def vessel_points() -> tuple[np.ndarray, np.ndarray]:
+    """8 wall nodes on a cylinder around x (4 angles x 2 rings) and its 8 triangles."""
+    angles = np.arange(4) * np.pi / 2
+    rings = [np.stack([np.full(4, x), np.cos(angles), np.sin(angles)], axis=1) for x in (-1, 2)]
+    tris = []
+    for k in range(4):
+        a, b, c, d = k, (k + 1) % 4, 4 + k, 4 + (k + 1) % 4
+        tris += [[a, b, c], [b, d, c]]
+    return np.concatenate(rings), np.array(tris, dtype=np.int32)
+
+
+def make_simulation(name: str = "sim_0", n_frames: int = 5, seed: int = 0, **attrs) -> Simulation:
+    """A clot of 5 nodes (2 tets) pushed along x through a rigid 8-node tube: N = 13."""
+    rng = np.random.default_rng(seed)
+    wall, tris = vessel_points()
+    frames = []
+    for t in range(n_frames):
+        clot = CLOT_POINTS + [0.1 * t, 0.0, 0.0] + 0.01 * rng.standard_normal(CLOT_POINTS.shape)
+        frames.append(np.concatenate([clot, wall]))
+    node_type = np.array([1] * 5 + [0] * 8, dtype=np.int8)
+    base = {"dt": 0.01, "solver_wall_time_s": 1.5, "reference_wall_time_s": 180.0, "seed": seed}
+    return Simulation(
+        name=name,
+        positions=np.stack(frames).astype(np.float32),
+        node_type=node_type,
+        clot_cells=CLOT_TETS.copy(),
+        wall_cells=tris + 5,
+        attrs={**base, **attrs},
+    )
+
+
+def write_good(path: Path, n_sims: int = 2) -> Path:
+    sims = [make_simulation(f"sim_{i}", seed=i) for i in range(n_sims)]
+    return write_dataset(path, sims, name="tiny", source="tests")
+
+
+def _edit(path: Path, fn: Callable[[h5py.Group], None]) -> Path:
+    """Write a good file, then break simulation 'sim_0' with h5py directly."""
+    write_good(path)
+    with h5py.File(path, "r+") as h5:
+        fn(h5["simulations/sim_0"])
+    return path
+
+
+def _replace(group: h5py.Group, key: str, data: np.ndarray) -> None:
+    del group[key]
+    group.create_dataset(key, data=data)
+
+
+def _positions_with(value: float) -> Callable[[h5py.Group], None]:
+    def fn(g: h5py.Group) -> None:
+        pos = g["positions"][()]
+        pos[2, 1, 0] = value
+        g["positions"][...] = pos
+
+    return fn
+
+
+def _vessel_moves(g: h5py.Group) -> None:
+    pos = g["positions"][()]
+    pos[3, 7, 1] += 0.05
+    g["positions"][...] = pos
+
+
+def _truncate(path: Path) -> Path:
+    write_good(path)
+    data = path.read_bytes()
+    path.write_bytes(data[: len(data) // 2])
+    return path
+
+
+def _garbage(path: Path) -> Path:
+    path.write_bytes(np.random.default_rng(0).bytes(4096))
+    return path
+
+
+def _no_format(path: Path) -> Path:
+    write_good(path)
+    with h5py.File(path, "r+") as h5:
+        del h5.attrs["format"]
+    return path
+
+
+def _empty_sim(g: h5py.Group) -> None:
+    _replace(g, "positions", np.zeros((0, 13, 3), np.float32))
+
+
+# name -> (builder(path) -> path, expected simulation in message or None, expected field or None)
+BAD_FILES: dict[str, tuple[Callable[[Path], Path], str | None, str | None]] = {
+    "nan_positions": (lambda p: _edit(p, _positions_with(np.nan)), "sim_0", "positions"),
+    "inf_positions": (lambda p: _edit(p, _positions_with(np.inf)), "sim_0", "positions"),
+    "node_type_length": (
+        lambda p: _edit(p, lambda g: _replace(g, "node_type", np.ones(12, np.int8))),
+        "sim_0",
+        "node_type",
+    ),
+    "unknown_node_type": (
+        lambda p: _edit(p, lambda g: _replace(g, "node_type", np.array([1] * 5 + [7] * 8, "i1"))),
+        "sim_0",
+        "node_type",
+    ),
+    "no_clot_nodes": (
+        lambda p: _edit(p, lambda g: _replace(g, "node_type", np.zeros(13, np.int8))),
+        "sim_0",
+        "node_type",
+    ),
+    "vessel_moves": (lambda p: _edit(p, _vessel_moves), "sim_0", "positions"),
+    "missing_field": (
+        lambda p: _edit(p, lambda g: g.__delitem__("node_type")), "sim_0", "node_type"
+    ),
+    "wrong_dtype": (
+        lambda p: _edit(p, lambda g: _replace(g, "positions", np.ones((5, 13, 3), np.int32))),
+        "sim_0",
+        "positions",
+    ),
+    "wrong_rank": (
+        lambda p: _edit(p, lambda g: _replace(g, "positions", np.ones((13, 3), np.float32))),
+        "sim_0",
+        "positions",
+    ),
+    "bad_cells": (
+        lambda p: _edit(p, lambda g: _replace(g, "clot_cells", np.ones((2, 3), np.int32))),
+        "sim_0",
+        "clot_cells",
+    ),
+    "empty_simulation": (lambda p: _edit(p, _empty_sim), "sim_0", "positions"),
+    "truncated_file": (_truncate, None, None),
+    "corrupt_file": (_garbage, None, None),
+    "not_a_dataset": (_no_format, None, "format"),
+}

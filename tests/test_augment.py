@@ -1,0 +1,146 @@
+"""Augmentations: rotation keeps geometry, subsampling keeps the clot fraction, BaryCentricSampling
+puts points on triangles with constant coefficients, the generated ratio holds."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from thrombojax.data.augment import (
+    AugmentConfig,
+    augment_batch,
+    barycentric_resample,
+    find_sample_triangles,
+    random_rotation,
+    rotate_window,
+    subsample_indices,
+)
+from thrombojax.data.batching import Batch, epoch_plan
+from thrombojax.errors import ConfigError
+from thrombojax.types import NodeType
+
+
+def _window(n_vessel=40, n_clot=24, n_pad=8, seed=0):
+    """A synthetic window: a ring of vessel nodes and a moving, deforming clot blob."""
+    rng = np.random.default_rng(seed)
+    ang = np.linspace(0, 2 * np.pi, n_vessel, endpoint=False)
+    vessel = np.stack([0.6 * np.cos(ang), 0.6 * np.sin(ang), 0.1 * rng.standard_normal(n_vessel)], 1)
+    clot = 0.15 * rng.standard_normal((n_clot, 3))
+    frames = []
+    for k in range(3):
+        c = clot * (1 + 0.05 * k + 0.03 * k * k) + np.array([0.02 * k + 0.01 * k * k, 0.0, 0.01 * k])
+        frames.append(np.concatenate([vessel, c, np.zeros((n_pad, 3))]))
+    frames = np.asarray(frames, np.float32)
+    node_type = np.concatenate(
+        [np.zeros(n_vessel), np.ones(n_clot), np.zeros(n_pad)]
+    ).astype(np.int32)
+    mask = np.concatenate([np.ones(n_vessel + n_clot), np.zeros(n_pad)]).astype(bool)
+    return frames, node_type, mask
+
+
+def _pairwise(x):
+    return np.linalg.norm(x[:, None] - x[None], axis=-1)
+
+
+def test_rotation_is_orthogonal_and_bounded():
+    for i in range(20):
+        rot = np.asarray(random_rotation(jax.random.PRNGKey(i), 0.3))
+        np.testing.assert_allclose(rot @ rot.T, np.eye(3), atol=1e-5)
+        assert np.linalg.det(rot) == pytest.approx(1.0, abs=1e-5)
+        angle = np.arccos(np.clip((np.trace(rot) - 1) / 2, -1, 1))
+        assert angle <= 0.3 + 1e-4
+    np.testing.assert_allclose(random_rotation(jax.random.PRNGKey(0), 0.0), np.eye(3), atol=1e-7)
+
+
+def test_rotated_window_keeps_distances_and_clot_mask():
+    frames, node_type, mask = _window()
+    batch = Batch(
+        frames=jnp.asarray(frames)[None], node_type=jnp.asarray(node_type)[None],
+        mask=jnp.asarray(mask)[None], generated=jnp.zeros((1,), bool),
+    )
+    out, overflow = augment_batch(jax.random.PRNGKey(3), batch, AugmentConfig(max_rotation=np.pi))
+    assert not bool(overflow)
+    rotated = np.asarray(out.frames[0])
+    assert not np.allclose(rotated, frames, atol=1e-3)  # it did rotate
+    for f in range(3):  # same rigid motion in every frame: pairwise distances unchanged
+        np.testing.assert_allclose(_pairwise(rotated[f]), _pairwise(frames[f]), atol=2e-5)
+    # one rotation for the whole window: displacements between frames rotate with it
+    rot = np.linalg.lstsq(frames[1], rotated[1], rcond=None)[0].T
+    np.testing.assert_allclose(rotated[2] - rotated[1], (frames[2] - frames[1]) @ rot.T, atol=2e-5)
+    np.testing.assert_array_equal(np.asarray(out.node_type[0]), node_type)  # the mask follows
+    np.testing.assert_array_equal(np.asarray(out.mask[0]), mask)
+    np.testing.assert_array_equal(rotated[:, ~mask], 0.0)  # padding stays at the origin
+
+
+def test_rotate_window_direct():
+    frames, _, _ = _window()
+    rot = random_rotation(jax.random.PRNGKey(1), np.pi)
+    out = np.asarray(rotate_window(jnp.asarray(frames), rot))
+    np.testing.assert_allclose(out[1] @ np.asarray(rot), frames[1], atol=1e-5)
+
+
+def test_subsample_keeps_clot_fraction_and_is_seeded():
+    node_type = np.array([NodeType.VESSEL] * 900 + [NodeType.CLOT] * 100, np.int8)
+    idx = subsample_indices(np.random.default_rng(0), node_type, 200)
+    assert idx.shape == (200,) and np.unique(idx).size == 200
+    assert (node_type[idx] == NodeType.CLOT).sum() == 20
+    again = subsample_indices(np.random.default_rng(0), node_type, 200)
+    np.testing.assert_array_equal(idx, again)
+    np.testing.assert_array_equal(subsample_indices(np.random.default_rng(0), node_type, 5000),
+                                  np.arange(1000))
+    with pytest.raises(ConfigError):
+        subsample_indices(np.random.default_rng(0), node_type, 0)
+
+
+def test_barycentric_points_lie_on_triangles_in_every_frame():
+    frames, node_type, mask = _window()
+    tri, count, overflow = find_sample_triangles(
+        jnp.asarray(frames[1]), jnp.asarray(mask), radius=0.35, max_neighbors=8, max_triangles=4096
+    )
+    assert not bool(overflow) and int(count) > 0
+    new, coef, verts = barycentric_resample(
+        jax.random.PRNGKey(0), jnp.asarray(frames), jnp.asarray(node_type), jnp.asarray(mask),
+        tri, count,
+    )
+    new, coef, verts = np.asarray(new), np.asarray(coef), np.asarray(verts)
+    real = np.flatnonzero(mask)
+    assert np.all(coef >= 0) and np.allclose(coef.sum(1), 1.0, atol=1e-6)
+    valid = {tuple(sorted(t)) for t in np.asarray(tri)[: int(count)].tolist()}
+    for i in real:
+        assert tuple(sorted(verts[i].tolist())) in valid  # a triangle of the edge set
+        assert np.all(node_type[verts[i]] == node_type[i])  # of the point's own node type
+        for f in range(3):  # same coefficients in all frames: the point moves with its triangle
+            np.testing.assert_allclose(new[f, i], coef[i] @ frames[f, verts[i]], atol=1e-5)
+        # recover the coefficients from each frame independently (least squares on the plane)
+        for f in range(3):
+            a = np.concatenate([frames[f, verts[i]].T, np.ones((1, 3))])
+            b = np.concatenate([new[f, i], [1.0]])
+            np.testing.assert_allclose(np.linalg.lstsq(a, b, rcond=None)[0], coef[i], atol=1e-3)
+    assert not np.allclose(new[:, real], frames[:, real])  # new points, not copies
+    np.testing.assert_array_equal(new[:, ~mask], frames[:, ~mask])
+    vessel = real[node_type[real] == NodeType.VESSEL]
+    np.testing.assert_allclose(new[0, vessel], new[2, vessel], atol=1e-6)  # vessel stays rigid
+
+
+def test_generated_ratio_and_batch_replacement():
+    plan = epoch_plan(30, bary_ratio=2.0, batch_size=8, seed=1, epoch=0).reshape(-1, 2)
+    real = plan[(plan[:, 0] >= 0) & (plan[:, 1] == 0)]
+    gen = plan[plan[:, 1] == 1]
+    assert len(real) == 30 and len(gen) == 60  # real:generated = 1:2
+    np.testing.assert_array_equal(np.sort(real[:, 0]), np.arange(30))
+    assert not np.array_equal(plan, epoch_plan(30, bary_ratio=2.0, batch_size=8, seed=1,
+                                               epoch=1).reshape(-1, 2))
+    frames, node_type, mask = _window()
+    batch = Batch(
+        frames=jnp.stack([jnp.asarray(frames)] * 2), node_type=jnp.stack([node_type] * 2),
+        mask=jnp.stack([mask] * 2), generated=jnp.array([False, True]),
+    )
+    cfg = AugmentConfig(max_rotation=0.0, barycentric=True, radius=0.35, max_neighbors=8,
+                        max_triangles=4096)
+    out, overflow = augment_batch(jax.random.PRNGKey(0), batch, cfg)
+    assert not bool(overflow)
+    np.testing.assert_array_equal(np.asarray(out.frames[0]), frames)  # real sample untouched
+    assert not np.allclose(np.asarray(out.frames[1]), frames)
+    small = AugmentConfig(max_rotation=0.0, barycentric=True, radius=0.35, max_neighbors=8,
+                          max_triangles=2)
+    assert bool(augment_batch(jax.random.PRNGKey(0), batch, small)[1])  # overflow reported

@@ -1,0 +1,117 @@
+"""Erwin (thrombojax.models.erwin): shape, jit + gradients, padding, tree references, permutation.
+
+Tiny config (ErwinConfig.tiny(): hidden 8, two levels, balls of 8, depths 2 so the rotated tree
+is used) on N = 50 real nodes (not a power of two: the tree has 64 slots, 14 padding copies).
+"""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from thrombojax.graph.balltree import build_balltree_numpy
+from thrombojax.models.erwin import BallMSA, ErwinGraph, ErwinSurrogate
+from thrombojax.models.registry import count_params, create_model, get_config
+from thrombojax.rollout import make_input
+
+N = 50
+
+
+def _inputs(n_real, n_pad=0, seed=0):
+    rng = np.random.default_rng(seed)
+    n = n_real + n_pad
+    x = rng.uniform(-1, 1, (n, 3)).astype(np.float32)
+    xp = x - 0.05 * rng.normal(size=(n, 3)).astype(np.float32)
+    nt = np.where(rng.uniform(size=n) < 0.5, 1, 0).astype(np.int32)
+    mask = np.arange(n) < n_real
+    return make_input(jnp.asarray(xp), jnp.asarray(x), jnp.asarray(nt), jnp.asarray(mask))
+
+
+@pytest.fixture(scope="module")
+def setup():
+    model = create_model("erwin", get_config("erwin", tiny=True))
+    inputs = _inputs(N)
+    graph = jax.jit(model.build_graph)(inputs)
+    params = model.init(jax.random.key(0), inputs, graph)
+    apply = jax.jit(model.apply)
+    return model, inputs, graph, params, apply
+
+
+def test_output_shape_finite_and_widths(setup):
+    model, inputs, graph, params, apply = setup
+    assert isinstance(model, ErwinSurrogate)
+    out = apply(params, inputs, graph)
+    assert out.shape == (N, 3)
+    assert bool(jnp.all(jnp.isfinite(out)))
+    assert not bool(graph.overflow)
+    assert graph.tree.perm.shape == (64,) and len(graph.tree.rot_perm) == 2
+    # widths double per level (hidden 8 -> 16 after one stride-2 pooling)
+    net = params["params"]["net"]
+    assert net["enc_0"]["ErwinBlock_0"]["norm1"]["scale"].shape == (8,)
+    assert net["enc_1"]["ErwinBlock_0"]["norm1"]["scale"].shape == (16,)
+    assert count_params(params) > 0
+
+
+def test_jit_gradients_finite(setup):
+    model, inputs, graph, params, _ = setup
+
+    @jax.jit
+    def grads(p):
+        return jax.grad(lambda q: jnp.sum(model.apply(q, inputs, graph) ** 2))(p)
+
+    g = grads(params)
+    leaves = jax.tree_util.tree_leaves(g)
+    assert all(bool(jnp.all(jnp.isfinite(leaf))) for leaf in leaves)
+    sigma = g["params"]["net"]["enc_0"]["ErwinBlock_1"]["attn"]["sigma"]
+    assert float(jnp.abs(sigma).sum()) > 0.0  # the distance fall-off is trained
+    assert sum(float(jnp.abs(leaf).sum()) for leaf in leaves) > 0.0
+
+
+def test_padded_rows_leave_real_outputs_unchanged(setup):
+    model, inputs, graph, params, apply = setup
+    padded = _inputs(N, n_pad=10)  # same real nodes, 10 junk rows; 60 rows keep 64 slots
+    graph_p = jax.jit(model.build_graph)(padded)
+    out_p = apply(params, padded, graph_p)
+    np.testing.assert_allclose(out_p[:N], apply(params, inputs, graph), atol=1e-5, rtol=1e-4)
+    assert bool(jnp.all(jnp.isfinite(out_p)))
+
+
+def test_ball_attention_ignores_padding_slots():
+    rng = np.random.default_rng(1)
+    x = jnp.asarray(rng.normal(size=(16, 8)), jnp.float32)
+    pos = jnp.asarray(rng.uniform(-1, 1, (16, 3)), jnp.float32)
+    valid = jnp.asarray([True] * 5 + [False] * 3 + [False] * 8)  # last ball: all padding
+    msa = BallMSA(dim=8, num_heads=2, ball_size=8)
+    params = msa.init(jax.random.key(0), x, pos, valid)
+    out = msa.apply(params, x, pos, valid)
+    x2 = x.at[5:].set(100.0 * x[5:] + 3.0)
+    pos2 = pos.at[5:].set(7.0)
+    out2 = msa.apply(params, x2, pos2, valid)
+    np.testing.assert_allclose(out2[:5], out[:5], atol=1e-5, rtol=1e-5)
+    assert bool(jnp.all(jnp.isfinite(out2)))
+
+
+def test_numpy_tree_gives_same_output(setup):
+    model, inputs, graph, params, apply = setup
+    c = model.config
+    tree_np = build_balltree_numpy(
+        np.asarray(inputs.positions), mask=np.asarray(inputs.mask), strides=c.strides,
+        ball_sizes=c.ball_sizes, rotate=c.rotate,
+    )
+    tree_np = jax.tree_util.tree_map(jnp.asarray, tree_np)
+    graph_np = ErwinGraph(tree=tree_np, neighbors=graph.neighbors, overflow=graph.overflow)
+    np.testing.assert_array_equal(tree_np.perm, graph.tree.perm)
+    np.testing.assert_allclose(
+        apply(params, inputs, graph_np), apply(params, inputs, graph), atol=1e-6, rtol=1e-5
+    )
+
+
+def test_permuting_nodes_permutes_outputs(setup):
+    # Exact up to ties in the tree's median splits (none for random float positions) and
+    # float summation order in the MPNN mean.
+    model, inputs, graph, params, apply = setup
+    perm = np.random.default_rng(2).permutation(N)
+    permuted = jax.tree_util.tree_map(lambda a: a[perm], inputs)
+    graph_p = jax.jit(model.build_graph)(permuted)
+    out = apply(params, inputs, graph)
+    np.testing.assert_allclose(apply(params, permuted, graph_p), out[perm], atol=1e-5, rtol=1e-4)

@@ -1,0 +1,72 @@
+"""Metrics: MSE conventions, horizons, centroid error and the vessel-containment test."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from thrombojax.errors import DatasetError
+from thrombojax.metrics import (
+    centroid_error,
+    clot_mask_of,
+    fit_vessel_wall,
+    fraction_outside,
+    horizon_mse,
+    mse_per_step,
+)
+from thrombojax.types import NodeType
+
+
+def _bent_tube(radius=1.0, bend=4.0, n_ring=16, n_len=30):
+    """Wall nodes of a tube: straight leg along x, a 90 deg bend, straight leg along y."""
+    phi = np.linspace(0, 2 * np.pi, n_ring, endpoint=False)
+    pts = []
+    for s in np.linspace(-6, 0, n_len // 2, endpoint=False):  # leg 1: axis (s, 0, 0)
+        pts.append(np.stack([np.full_like(phi, s), radius * np.cos(phi), radius * np.sin(phi)], 1))
+    for th in np.linspace(0, np.pi / 2, n_len // 2):  # bend about centre (0, bend, 0)
+        c = np.array([bend * np.sin(th), bend - bend * np.cos(th), 0.0])
+        e_r = np.array([np.sin(th), -np.cos(th), 0.0])
+        ring = c + radius * (np.cos(phi)[:, None] * e_r + np.sin(phi)[:, None] * [0, 0, 1])
+        pts.append(ring)
+    return np.concatenate(pts)
+
+
+def test_mse_horizons_and_centroid():
+    true = np.zeros((12, 4, 3))
+    pred = true.copy()
+    pred[:, 0] += np.arange(1, 13)[:, None]  # node 0 (clot) drifts by k
+    pred[:, 3] += 100.0  # a vessel node: must not count
+    node_type = np.array([NodeType.CLOT, NodeType.CLOT, NodeType.VESSEL, NodeType.VESSEL])
+    clot = clot_mask_of(node_type)
+    per = mse_per_step(pred, true, clot)
+    np.testing.assert_allclose(per, np.arange(1, 13) ** 2 * 3 / 6)
+    h = horizon_mse(per, (1, 10, 50))
+    assert set(h) == {"mse@1", "mse@10", "mse@full"}
+    assert h["mse@1"] == pytest.approx(per[0]) and h["mse@10"] == pytest.approx(per[:10].mean())
+    np.testing.assert_allclose(centroid_error(pred, true, clot), np.arange(1, 13) * np.sqrt(3) / 2)
+    with pytest.raises(DatasetError):
+        mse_per_step(pred[:3], true, clot)
+
+
+def test_containment_in_bent_tube():
+    wall = _bent_tube()
+    inside = np.array([[-3.0, 0.3, 0.2], [-1.0, -0.5, 0.0], [2.8, 1.2, 0.4], [4.0, 4.0, -0.6]])
+    outside = np.array([[-3.0, 1.6, 0.0], [-2.0, 0.0, -1.5], [1.2, 2.5, 0.1], [4.0, 4.0, 1.7],
+                        [2.6, 1.0, 1.5]])
+    n_wall = wall.shape[0]
+    positions = np.concatenate([wall, inside, outside])
+    node_type = np.array([NodeType.VESSEL] * n_wall + [NodeType.CLOT] * 9)
+    vw = fit_vessel_wall(positions, node_type)
+    # all normals point away from the axis: dot with (wall - centre of its ring) > 0 on leg 1
+    leg1 = wall[:, 0] < -0.5
+    radial = wall[leg1] * [0, 1, 1]
+    assert (np.einsum("ij,ij->i", vw.normals[:len(wall)][leg1], radial) > 0).all()
+    traj = positions[None]
+    sel = np.zeros(len(positions), bool)
+    sel[n_wall:n_wall + 4] = True
+    assert fraction_outside(vw, traj, sel)[0] == 0.0
+    sel[:] = False
+    sel[n_wall + 4:] = True
+    assert fraction_outside(vw, traj, sel)[0] == 1.0
+    sel = clot_mask_of(node_type)
+    assert fraction_outside(vw, traj, sel)[0] == pytest.approx(5 / 9)

@@ -1,0 +1,128 @@
+"""The jitted train step: schedule, noise, masked losses, and an overfit test for every model."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from thrombojax.data.batching import Batch
+from thrombojax.models.registry import MODEL_NAMES, create_model, get_config
+from thrombojax.rollout import predict_next
+from thrombojax.train.loss import masked_mse, sample_loss_terms
+from thrombojax.train.noise import add_training_noise
+from thrombojax.train.schedule import make_optimizer, make_schedule
+from thrombojax.train.step import batch_loss, init_state, make_eval_step, make_train_step
+from thrombojax.types import NodeType, TargetStats
+
+TRAINABLE = [name for name in MODEL_NAMES if name != "constant_velocity"]
+
+
+def _window(seed, n_vessel=40, n_clot=20, n_pad=4):
+    """A ring of vessel nodes and a clot blob whose acceleration depends on the node."""
+    rng = np.random.default_rng(seed)
+    ang = np.linspace(0, 2 * np.pi, n_vessel, endpoint=False)
+    vessel = np.stack([0.6 * np.cos(ang), 0.6 * np.sin(ang), 0.1 * rng.standard_normal(n_vessel)], 1)
+    clot = 0.15 * rng.standard_normal((n_clot, 3))
+    frames = []
+    for k in range(3):
+        c = clot * (1 + 0.05 * k + 0.03 * k * k) + np.array([0.02 * k + 0.01 * k * k, 0, 0.01 * k])
+        frames.append(np.concatenate([vessel, c, np.zeros((n_pad, 3))]))
+    node_type = np.array([0] * n_vessel + [1] * n_clot + [0] * n_pad, np.int32)
+    mask = np.array([True] * (n_vessel + n_clot) + [False] * n_pad)
+    return np.asarray(frames, np.float32), node_type, mask
+
+
+def _batch(n=4):
+    ws = [_window(s) for s in range(n)]
+    return Batch(
+        frames=np.stack([w[0] for w in ws]), node_type=np.stack([w[1] for w in ws]),
+        mask=np.stack([w[2] for w in ws]), generated=np.zeros(n, bool),
+    )
+
+
+def _stats(batch):
+    acc = batch.frames[:, 2] - 2 * batch.frames[:, 1] + batch.frames[:, 0]
+    clot = (batch.node_type == NodeType.CLOT) & batch.mask
+    return TargetStats(mean=jnp.asarray(acc[clot].mean(0)), std=jnp.asarray(acc[clot].std(0)))
+
+
+def test_schedule_warmup_then_cosine():
+    sched = make_schedule(1e-3, 100, 10)
+    lrs = np.array([float(sched(i)) for i in range(101)])
+    assert lrs[0] == 0.0 and lrs[10] == pytest.approx(1e-3)
+    np.testing.assert_allclose(lrs[:11], np.linspace(0, 1e-3, 11), rtol=1e-5, atol=1e-12)
+    assert np.all(np.diff(lrs[10:]) <= 1e-12) and lrs[100] == pytest.approx(0.0, abs=1e-9)
+    assert lrs[55] == pytest.approx(0.5e-3, rel=1e-3)  # half way through the cosine
+
+
+def test_noise_corrects_the_target():
+    frames, node_type, mask = _window(0)
+    noisy = np.asarray(add_training_noise(jax.random.PRNGKey(0), jnp.asarray(frames),
+                                          jnp.asarray(node_type), jnp.asarray(mask),
+                                          std=0.01, gamma=0.25))
+    clot = (node_type == NodeType.CLOT) & mask
+    noise = noisy[1] - frames[1]
+    assert np.all(noise[~clot] == 0) and np.all(noise[clot] != 0)
+    np.testing.assert_allclose(noisy[2] - frames[2], 0.75 * noise, atol=1e-6)
+    np.testing.assert_array_equal(noisy[0], frames[0])
+    same = add_training_noise(jax.random.PRNGKey(0), jnp.asarray(frames), jnp.asarray(node_type),
+                              jnp.asarray(mask), std=0.0)
+    np.testing.assert_array_equal(np.asarray(same), frames)
+
+
+def test_losses_are_masked_and_match_the_rollout_step():
+    model = create_model("mgn", get_config("mgn", tiny=True))
+    batch = _batch(1)
+    stats = _stats(batch)
+    frames, nt, mask = (jnp.asarray(x[0]) for x in (batch.frames, batch.node_type, batch.mask))
+    state = init_state(model, make_optimizer(1e-3), jax.random.PRNGKey(0), batch)
+    terms = sample_loss_terms(model, state.params, stats, frames, nt, mask, train=False, rng=None)
+    x_next, out = predict_next(model, state.params, stats, frames[0], frames[1], nt, mask)
+    clot = mask & (nt == NodeType.CLOT)
+    np.testing.assert_allclose(terms["mse_sum"] / terms["count"],
+                               masked_mse(x_next, frames[2], clot), rtol=1e-5)
+    target = stats.normalize(frames[2] - 2 * frames[1] + frames[0])
+    np.testing.assert_allclose(terms["loss_sum"] / terms["count"],
+                               masked_mse(out, target, clot), rtol=1e-5)
+    assert float(terms["count"]) == 20
+    moved = frames.at[:, ~np.asarray(mask)].set(5.0)  # padding never reaches the loss
+    again = sample_loss_terms(model, state.params, stats, moved, nt, mask, train=False, rng=None)
+    np.testing.assert_allclose(again["loss_sum"], terms["loss_sum"], rtol=1e-6)
+
+
+def test_train_step_updates_and_eval_is_deterministic():
+    model = create_model("mgn", get_config("mgn", tiny=True))
+    batch = _batch(2)
+    stats = _stats(batch)
+    tx = make_optimizer(1e-3, grad_clip=1.0)
+    state = init_state(model, tx, jax.random.PRNGKey(0), batch)
+    before = jax.tree.map(np.asarray, state.params)
+    eval_step = make_eval_step(model, stats)
+    m0 = eval_step(state.params, batch)
+    np.testing.assert_array_equal(m0["loss"], eval_step(state.params, batch)["loss"])
+    loss, _ = batch_loss(model, state.params, stats, batch, None, train=False)
+    np.testing.assert_allclose(m0["loss"], loss, rtol=1e-6)
+    state, metrics = make_train_step(model, tx, stats)(state, batch, jax.random.PRNGKey(1))
+    assert int(state.step) == 1 and np.isfinite(float(metrics["grad_norm"]))
+    assert float(metrics["nodes"]) == 40 and not bool(metrics["overflow"])
+    changed = jax.tree.map(lambda a, b: not np.array_equal(a, np.asarray(b)), before, state.params)
+    assert any(jax.tree.leaves(changed))
+
+
+@pytest.mark.parametrize("name", TRAINABLE)
+def test_overfit_a_few_samples(name):
+    """Each tiny model drives its loss on four samples to <= 1 % of the starting loss."""
+    overrides = {"dropout": 0.0} if name == "transolver" else {}
+    model = create_model(name, get_config(name, tiny=True, **overrides))
+    batch = _batch(4)
+    stats = _stats(batch)
+    steps = 1200
+    tx = make_optimizer(make_schedule(3e-3, steps, 50), weight_decay=0.0)
+    state = init_state(model, tx, jax.random.PRNGKey(0), batch)
+    eval_step = make_eval_step(model, stats)
+    start = float(eval_step(state.params, batch)["loss"])
+    train_step = make_train_step(model, tx, stats)
+    for i in range(steps):
+        state, _ = train_step(state, batch, jax.random.PRNGKey(i))
+    end = float(eval_step(state.params, batch)["loss"])
+    assert end <= 0.01 * start, (name, start, end)

@@ -1,0 +1,297 @@
+"""Rollout speed: compile time, steady-state time, per-step time and speed-up over the solvers.
+
+The study's setting (``PAPER.md``): BendVessel 35 rollout steps x 977 nodes (Abaqus 180 s per
+simulation), ClotEntry 160 steps x 2,048 nodes (Abaqus 1500 s); we add ClotEntry at full
+resolution (~27,000 nodes). As in the study, rollout times are scaled to the full simulation
+length (x 40/35 and x 200/160) before the speed-up is computed, because the solver time covers
+every frame. Speed-up over our own solver uses its measured ``solver_wall_time_s`` on the same
+machine (read from a dataset, or measured by running a preset).
+
+Timing does not need trained weights: the cost of a rollout depends on the architecture and
+the shapes only, so models are random-initialised from their study configs unless trained runs
+are given. Positions come from a dataset frame when one is given, else from a synthetic bent
+tube with a clot (same node counts, scaled [-1, 1]); the radius graphs are capped at
+``max_neighbors`` either way. Compile time is measured with ``jit(...).lower(...).compile()``;
+steady-state time is the median of ``repeats`` runs of the compiled rollout (synchronised with
+``block_until_ready``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import datetime
+import json
+import os
+import pathlib
+import platform
+import statistics
+import time
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from tqdm.auto import tqdm
+
+from thrombojax.errors import ConfigError
+from thrombojax.evaluate import default_skip, markdown_table
+from thrombojax.rollout import rollout_jit, select_subset
+from thrombojax.types import NodeType
+
+__all__ = ["BenchCase", "STUDY_CASES", "synthetic_cloud", "time_rollout", "environment", "bench"]
+
+
+@dataclasses.dataclass(frozen=True)
+class BenchCase:
+    """One benchmark size.
+
+    Attributes:
+        name: case name. n_nodes: nodes rolled out. n_steps: rollout steps (study's length).
+        full_frames: frames of the whole simulation (the scaling to full length).
+        abaqus_s: the study's recorded Abaqus wall time per simulation.
+        kind: which dataset / solver preset the case belongs to.
+    """
+
+    name: str
+    n_nodes: int
+    n_steps: int
+    full_frames: int
+    abaqus_s: float
+    kind: str
+
+
+STUDY_CASES: dict[str, BenchCase] = {
+    "bendvessel": BenchCase("bendvessel", 977, 35, 40, 180.0, "bendvessel"),
+    "clotentry": BenchCase("clotentry", 2048, 160, 200, 1500.0, "clotentry"),
+    "clotentry-full": BenchCase("clotentry-full", 27000, 160, 200, 1500.0, "clotentry"),
+}
+
+
+def synthetic_cloud(n_nodes: int, *, clot_fraction: float = 0.3, seed: int = 0):
+    """A bent tube wall with a clot inside, in scaled coordinates.
+
+    Args:
+        n_nodes: total nodes. clot_fraction: share of clot nodes. seed: RNG seed.
+    Returns:
+        ``(x_prev [n, 3], x_cur [n, 3], node_type [n])`` float32 / int32; the clot moves by a
+        small step along the tube.
+    """
+    rng = np.random.default_rng(seed)
+    n_clot = max(1, int(round(n_nodes * clot_fraction)))
+    n_wall = n_nodes - n_clot
+    radius, bend = 0.18, 0.8
+
+    def tube(s, rho, phi):  # s in [0, 1] along a 90 deg arc of radius `bend`
+        th = s * np.pi / 2
+        c = np.stack([bend * np.sin(th), bend * (1 - np.cos(th)), 0 * th], -1)
+        e_r = np.stack([np.sin(th), -np.cos(th), 0 * th], -1)
+        e_z = np.array([0.0, 0.0, 1.0])
+        return c + rho[:, None] * (np.cos(phi)[:, None] * e_r + np.sin(phi)[:, None] * e_z)
+
+    wall = tube(rng.uniform(0, 1, n_wall), np.full(n_wall, radius), rng.uniform(0, 6.3, n_wall))
+    s = rng.uniform(0.4, 0.6, n_clot)
+    rho, phi = radius * 0.7 * np.sqrt(rng.uniform(0, 1, n_clot)), rng.uniform(0, 6.3, n_clot)
+    x_cur = np.concatenate([tube(s, rho, phi), wall]) - [bend / 2, bend / 2, 0]
+    x_prev = x_cur.copy()
+    x_prev[:n_clot] = tube(s - 0.002, rho, phi) - [bend / 2, bend / 2, 0]
+    node_type = np.array([NodeType.CLOT] * n_clot + [NodeType.VESSEL] * n_wall, np.int32)
+    return x_prev.astype(np.float32), x_cur.astype(np.float32), node_type
+
+
+def time_rollout(model, params, stats, x_prev, x_cur, node_type, n_steps: int, *,
+                 repeats: int = 3) -> dict:
+    """Compile and time one rollout shape.
+
+    Returns:
+        ``{"compile_s", "rollout_s" (median steady state), "rollout_min_s", "per_step_s",
+        "overflow"}``.
+    """
+    args = (params, stats, np.asarray(x_prev, np.float32), np.asarray(x_cur, np.float32),
+            np.asarray(node_type, np.int32), np.ones(len(node_type), bool))
+    t = time.perf_counter()
+    compiled = rollout_jit.lower(model, *args, n_steps=int(n_steps)).compile()
+    compile_s = time.perf_counter() - t
+    traj, overflow = compiled(*args)
+    jax.block_until_ready(traj)  # warm-up run (allocations), not timed
+    times = []
+    for _ in range(max(1, repeats)):
+        t = time.perf_counter()
+        jax.block_until_ready(compiled(*args))
+        times.append(time.perf_counter() - t)
+    med = statistics.median(times)
+    return {"compile_s": compile_s, "rollout_s": med, "rollout_min_s": min(times),
+            "per_step_s": med / n_steps, "overflow": bool(np.asarray(overflow).any()),
+            "finite": bool(np.isfinite(np.asarray(traj)).all())}
+
+
+def environment() -> dict:
+    """Device, versions, date and load: recorded beside every figure."""
+    import flax
+
+    dev = jax.devices()[0]
+    return {
+        "device": f"{dev.platform}:{getattr(dev, 'device_kind', '')}", "n_devices": len(
+            jax.devices()), "jax": jax.__version__, "flax": flax.__version__,
+        "python": platform.python_version(), "machine": platform.machine(),
+        "cpu_count": os.cpu_count(), "load_avg_1m": os.getloadavg()[0],
+        "date": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
+    }
+
+
+def _solver_times(datasets: list, measure_presets: list[str]) -> dict[str, float]:
+    """Mean measured solver wall time per simulation, keyed by kind (bendvessel / clotentry)."""
+    out: dict[str, float] = {}
+    for path in datasets:
+        from thrombojax.io.hdf5 import open_dataset
+
+        ds = open_dataset(path)
+        vals = [float(ds.sim_attrs(n)["solver_wall_time_s"]) for n in ds.names
+                if "solver_wall_time_s" in ds.sim_attrs(n)]
+        if vals:
+            kind = "clotentry" if default_skip(ds) == 40 else "bendvessel"
+            out[kind] = float(np.mean(vals))
+    for preset in measure_presets:
+        from thrombojax.sim.generate import simulate
+        from thrombojax.sim.presets import get_preset
+
+        t = time.perf_counter()
+        sim = simulate(get_preset(preset), 0)
+        out[preset.split("-")[0]] = float(sim.attrs.get("solver_wall_time_s",
+                                                        time.perf_counter() - t))
+    return out
+
+
+def _inputs(case: BenchCase, dataset, seed: int):
+    if dataset is None:
+        return synthetic_cloud(case.n_nodes, seed=seed), "synthetic bent tube"
+    from thrombojax.data.scaling import fit_scaling
+    from thrombojax.evaluate import scaled_simulation
+
+    name = dataset.names[0]
+    pos, node_type = scaled_simulation(dataset, name, fit_scaling(dataset))
+    t0 = min(max(default_skip(dataset), 1), pos.shape[0] - 1)
+    idx = select_subset(node_type, case.n_nodes, seed=seed)
+    return (pos[t0 - 1, idx], pos[t0, idx], node_type[idx]), f"{dataset.path}:{name}"
+
+
+def bench(
+    models: tuple[str, ...] = ("mgn", "transolver", "erwin"),
+    cases: tuple[str, ...] = ("bendvessel", "clotentry", "clotentry-full"),
+    *,
+    runs: dict[str, str] | None = None,
+    tiny: bool = False,
+    n_nodes: int | None = None,
+    max_steps: int | None = None,
+    repeats: int = 3,
+    dataset: str | None = None,
+    solver_datasets: tuple[str, ...] = (),
+    measure_solver: tuple[str, ...] = (),
+    out_dir: str | pathlib.Path | None = None,
+    seed: int = 0,
+    progress: bool = True,
+) -> dict:
+    """Time rollouts of each model at each case size and compare with the solvers.
+
+    Args:
+        models: registry names. cases: keys of :data:`STUDY_CASES`.
+        runs: model name -> trained run directory (its model, config and params are used).
+        tiny: random-initialise the tiny configs instead of the study configs.
+        n_nodes: override every case's node count. max_steps: time at most this many steps
+            and extrapolate per-step time to the case length (reported as ``extrapolated``).
+        repeats: steady-state repetitions (median reported).
+        dataset: take positions from this dataset instead of the synthetic tube.
+        solver_datasets: datasets whose ``solver_wall_time_s`` is our solver's time.
+        measure_solver: presets to run once now to measure our solver's time.
+        out_dir: write ``bench.json`` and ``bench.md`` there. seed: init / subset seed.
+        progress: show a progress bar.
+    Returns:
+        JSON-ready ``{"environment", "note", "results": [...]}``.
+    """
+    from thrombojax.models.registry import create_model, get_config
+
+    unknown = [c for c in cases if c not in STUDY_CASES]
+    if unknown:
+        raise ConfigError(f"unknown bench case(s) {unknown}; known: {list(STUDY_CASES)}")
+    runs = dict(runs or {})
+    ds = None
+    if dataset is not None:
+        from thrombojax.io.hdf5 import open_dataset
+
+        ds = open_dataset(dataset)
+    solver = _solver_times(list(solver_datasets), list(measure_solver))
+    results, inits = [], {}
+    jobs = [(m, c) for m in models for c in cases]
+    for model_name, case_name in tqdm(jobs, desc="bench", disable=not progress):
+        case = STUDY_CASES[case_name]
+        if n_nodes is not None:
+            case = dataclasses.replace(case, n_nodes=int(n_nodes))
+        (x_prev, x_cur, node_type), source = _inputs(case, ds, seed)
+        if model_name in runs:
+            from thrombojax.train.state import load_trained
+
+            trained = load_trained(runs[model_name])
+            model, params, stats, weights = trained.model, trained.params, trained.stats, "trained"
+        else:
+            model = create_model(model_name, get_config(model_name, tiny=tiny))
+            stats = _unit_stats()
+            if model_name not in inits:  # parameters do not depend on the node count
+                inits[model_name] = _init_params(model, x_prev, x_cur, node_type, seed)
+            params = inits[model_name]
+            weights = "random init (" + ("tiny" if tiny else "study") + " config)"
+        steps = case.n_steps if max_steps is None else min(case.n_steps, int(max_steps))
+        t = time_rollout(model, params, stats, x_prev, x_cur, node_type, steps, repeats=repeats)
+        per_step = t["per_step_s"]
+        case_s = per_step * case.n_steps
+        full_s = per_step * case.full_frames
+        row = {"model": model.name, "case": case.name, "n_nodes": int(len(node_type)),
+               "n_steps": case.n_steps, "timed_steps": steps, "extrapolated": steps < case.n_steps,
+               "weights": weights, "positions": source, **t, "case_rollout_s": case_s,
+               "full_length_s": full_s, "abaqus_s": case.abaqus_s,
+               "speedup_vs_abaqus": case.abaqus_s / full_s}
+        if case.kind in solver:
+            row["solver_s"] = solver[case.kind]
+            row["speedup_vs_solver"] = solver[case.kind] / full_s
+        results.append(row)
+    out = {"environment": environment(), "results": results, "note": (
+        "Timing needs no trained weights: cost depends on architecture and shapes only. "
+        "full_length_s = per-step time x all frames of the simulation (the study's x40/35, "
+        "x200/160 scaling); speed-ups compare it with the solver's time per simulation.")}
+    if out_dir is not None:
+        out_dir = pathlib.Path(out_dir)
+        out_dir.mkdir(parents=True, exist_ok=True)
+        (out_dir / "bench.json").write_text(json.dumps(out, indent=2))
+        (out_dir / "bench.md").write_text(bench_markdown(out))
+    out["table"] = bench_markdown(out)
+    return out
+
+
+def _init_params(model, x_prev, x_cur, node_type, seed: int):
+    """Random parameters, initialised under one ``jit`` (eager Flax init compiles op by op)."""
+    from thrombojax.rollout import make_input
+
+    def init(xp, xc, nt):
+        inputs = make_input(xp, xc, nt, jnp.ones(nt.shape[0], bool))
+        return model.init(jax.random.key(seed), inputs, model.build_graph(inputs))
+
+    return jax.jit(init)(x_prev, x_cur, node_type)
+
+
+def _unit_stats():
+    from thrombojax.models.registry import identity_stats
+
+    return identity_stats()
+
+
+def bench_markdown(result: dict) -> str:
+    """The benchmark as a markdown table with the environment beneath."""
+    rows = [[r["model"], r["case"], r["n_nodes"], f"{r['n_steps']}"
+             + (f" (timed {r['timed_steps']})" if r["extrapolated"] else ""),
+             r["compile_s"], r["rollout_s"], 1e3 * r["per_step_s"], r["full_length_s"],
+             f"x{r['speedup_vs_abaqus']:.0f}",
+             f"x{r['speedup_vs_solver']:.0f}" if "speedup_vs_solver" in r else "n/a",
+             r["weights"]] for r in result["results"]]
+    env = result["environment"]
+    table = markdown_table(["model", "case", "nodes", "steps", "compile s", "rollout s",
+                            "ms/step", "full-length s", "vs Abaqus", "vs our solver",
+                            "weights"], rows)
+    return (f"# Rollout benchmark\n\n{table}\n{result['note']}\n\n"
+            + "".join(f"- {k}: {v}\n" for k, v in env.items()))

@@ -1,0 +1,240 @@
+"""Data augmentations of one training window (s_{t-1}, s_t, s_{t+1}): pure functions with a seed.
+
+Three augmentations of the study (PAPER.md "Data augmentation"), each applied identically to the
+three frames of a window so the dynamics stay consistent:
+
+* :func:`random_rotation` / :func:`rotate_window`: a random rotation about a random axis
+  (uniform on the sphere) by an angle uniform in ``[0, max_angle]`` radians. The rotation is
+  about the origin of the *scaled* frame (the dataset's centre after :class:`Scaling`), so a
+  rotated sample stays inside roughly the same box; pairwise distances, velocities' norms and
+  node types are unchanged.
+* :func:`subsample_indices`: ``n`` of the ``N`` nodes (numpy, on the host), the clot fraction
+  kept, the same indices for all frames (ClotEntry: 2048 of ~27,000).
+* :func:`barycentric_resample`: the study's *BaryCentricSampling* (thesis, Algorithm 1): every
+  generated point is ``c1 p1 + c2 p2 + c3 p3`` on a triangle of the edge set, with one set of
+  coefficients ``(c1, c2, c3) >= 0``, ``sum = 1`` (uniform on the simplex, Dirichlet(1, 1, 1))
+  for all three frames, so the point moves with its triangle. Triangles come from
+  :mod:`thrombojax.graph.triangles` on the radius graph of s_t. Choice where the thesis is
+  silent: a generated sample has as many points as its source sample, each real node is replaced
+  by a point on a random triangle *of its own node type* (three clot vertices for a clot point,
+  three vessel vertices for a vessel point), so the clot:vessel composition is kept and vessel
+  points stay rigid; a node type without triangles keeps its nodes unchanged.
+
+Everything except :func:`subsample_indices` is jittable and works on one sample (no batch axis).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from thrombojax.errors import ConfigError
+from thrombojax.types import NUM_NODE_TYPES, NodeType
+
+__all__ = [
+    "AugmentConfig",
+    "augment_batch",
+    "random_rotation",
+    "rotate_window",
+    "subsample_indices",
+    "barycentric_resample",
+    "find_sample_triangles",
+]
+
+
+def random_rotation(key: jax.Array, max_angle: float | jax.Array) -> jax.Array:
+    """A random rotation matrix: axis uniform on the sphere, angle uniform in ``[0, max_angle]``.
+
+    Args:
+        key: PRNG key.
+        max_angle: the largest angle in radians (``pi`` = the study's best setting; 0 = identity).
+    Returns:
+        ``[3, 3]`` float32 orthogonal matrix with determinant +1 (Rodrigues' formula).
+    """
+    k_axis, k_angle = jax.random.split(key)
+    axis = jax.random.normal(k_axis, (3,), jnp.float32)
+    axis = axis / jnp.maximum(jnp.linalg.norm(axis), 1e-12)
+    angle = jax.random.uniform(k_angle, (), jnp.float32) * jnp.asarray(max_angle, jnp.float32)
+    x, y, z = axis[0], axis[1], axis[2]
+    zero = jnp.zeros((), jnp.float32)
+    cross = jnp.stack(
+        [jnp.stack([zero, -z, y]), jnp.stack([z, zero, -x]), jnp.stack([-y, x, zero])]
+    )
+    eye = jnp.eye(3, dtype=jnp.float32)
+    return eye + jnp.sin(angle) * cross + (1.0 - jnp.cos(angle)) * (cross @ cross)
+
+
+def rotate_window(frames: jax.Array, rotation: jax.Array) -> jax.Array:
+    """Rotate every frame of a window about the origin of the scaled frame.
+
+    Args:
+        frames: ``[..., n_nodes, 3]`` positions (e.g. ``[3, n_nodes, 3]`` for a window).
+        rotation: ``[3, 3]`` rotation matrix.
+    Returns:
+        Rotated positions, same shape: ``x @ R^T``.
+    """
+    return frames @ rotation.T
+
+
+def subsample_indices(rng: np.random.Generator, node_type: np.ndarray, n: int) -> np.ndarray:
+    """Choose ``n`` of the ``N`` nodes, keeping the clot fraction (host-side, numpy).
+
+    The number of clot nodes is ``round(n * N_clot / N)``, at least one when the sample has clot
+    nodes, and never more than there are of either type. The same indices must be applied to
+    every frame of the window.
+
+    Args:
+        rng: numpy generator (seeded by the caller, e.g. from (seed, epoch, position)).
+        node_type: ``[N]`` NodeType values.
+        n: number of nodes wanted; ``n >= N`` returns all nodes.
+    Returns:
+        ``[min(n, N)]`` int64 sorted node indices.
+    """
+    node_type = np.asarray(node_type)
+    total = node_type.shape[0]
+    if n <= 0:
+        raise ConfigError(f"nodes per sample must be positive, got {n}")
+    if n >= total:
+        return np.arange(total)
+    clot = np.flatnonzero(node_type == NodeType.CLOT)
+    vessel = np.flatnonzero(node_type != NodeType.CLOT)
+    n_clot = int(round(n * clot.size / total))
+    if clot.size > 0:
+        n_clot = max(n_clot, 1)
+    n_clot = min(n_clot, clot.size, n)
+    n_clot = max(n_clot, n - vessel.size)
+    n_vessel = n - n_clot
+    chosen = np.concatenate(
+        [rng.choice(clot, n_clot, replace=False), rng.choice(vessel, n_vessel, replace=False)]
+    )
+    return np.sort(chosen)
+
+
+def find_sample_triangles(
+    positions: jax.Array,
+    mask: jax.Array,
+    *,
+    radius: float,
+    max_neighbors: int,
+    max_triangles: int,
+) -> tuple[jax.Array, jax.Array, jax.Array]:
+    """Triangles of the radius graph of one frame (the edge set of Algorithm 1), jittable.
+
+    Args:
+        positions: ``[n_nodes, 3]`` positions s_t (scaled).
+        mask: ``[n_nodes]`` real-node mask.
+        radius, max_neighbors: the radius graph (fixed capacity, :mod:`thrombojax.graph`).
+        max_triangles: capacity of the triangle buffer.
+    Returns:
+        ``(triangles [max_triangles, 3] int32, count [] int32, overflow [] bool)``; rows at or
+        beyond ``count`` are padding. The caller re-allocates on ``overflow``.
+    """
+    from thrombojax.graph.neighbors import radius_graph
+    from thrombojax.graph.triangles import find_triangles
+
+    nbrs = radius_graph(positions, radius, max_neighbors, mask=mask)
+    triangles, count, overflow = find_triangles(nbrs, max_triangles)
+    return triangles.astype(jnp.int32), count, overflow
+
+
+def barycentric_resample(
+    key: jax.Array,
+    frames: jax.Array,
+    node_type: jax.Array,
+    mask: jax.Array,
+    triangles: jax.Array,
+    count: jax.Array,
+) -> tuple[jax.Array, jax.Array, jax.Array]:
+    """BaryCentricSampling (thesis Algorithm 1): a generated sample of points on triangles.
+
+    Args:
+        key: PRNG key.
+        frames: ``[n_frames, n_nodes, 3]`` the window (s_{t-1}, s_t, s_{t+1}).
+        node_type: ``[n_nodes]`` NodeType values. mask: ``[n_nodes]`` real-node mask.
+        triangles: ``[M, 3]`` vertex indices; rows ``>= count`` are padding.
+        count: ``[]`` number of valid triangles.
+    Returns:
+        ``(new_frames [n_frames, n_nodes, 3], coefficients [n_nodes, 3], vertices [n_nodes, 3])``:
+        node ``i`` of the generated sample is
+        ``sum_k coefficients[i, k] * frames[:, vertices[i, k]]`` in every frame; it has node
+        ``i``'s type and mask. Padded nodes are copied.
+    """
+    n_nodes = node_type.shape[0]
+    n_tri = triangles.shape[0]
+    k_coef, k_pick = jax.random.split(key)
+    coef = jax.random.dirichlet(k_coef, jnp.ones((3,), jnp.float32), (n_nodes,))
+    valid = jnp.arange(n_tri) < count
+    tri_types = node_type[jnp.clip(triangles, 0, n_nodes - 1)]
+    uniform = jax.random.uniform(k_pick, (n_nodes,))
+    self_tri = jnp.broadcast_to(jnp.arange(n_nodes, dtype=jnp.int32)[:, None], (n_nodes, 3))
+    vertices = self_tri
+    for kind in range(NUM_NODE_TYPES):
+        ok = valid & jnp.all(tri_types == kind, axis=1)
+        n_ok = ok.sum()
+        order = jnp.argsort(~ok, stable=True)  # valid triangles of this type first
+        pick = jnp.clip(jnp.floor(uniform * n_ok).astype(jnp.int32), 0, n_tri - 1)
+        chosen = triangles[order[pick]].astype(jnp.int32)
+        use = (node_type == kind) & mask & (n_ok > 0)
+        vertices = jnp.where(use[:, None], chosen, vertices)
+    generated = jnp.logical_not(jnp.all(vertices == self_tri, axis=1))
+    coef = jnp.where(generated[:, None], coef, jnp.array([1.0, 0.0, 0.0], jnp.float32))
+    new_frames = jnp.einsum("nk,fnkd->fnd", coef, frames[:, vertices])
+    return new_frames, coef, vertices
+
+
+@dataclasses.dataclass(frozen=True)
+class AugmentConfig:
+    """Augmentations applied on the device to every training batch.
+
+    Attributes:
+        max_rotation: largest rotation angle in radians (0 disables rotations).
+        barycentric: whether the batch may contain generated (BaryCentricSampling) samples.
+        radius, max_neighbors: the radius graph whose triangles BaryCentricSampling uses.
+        max_triangles: triangle buffer capacity per sample (re-allocated on overflow).
+    """
+
+    max_rotation: float = float(np.pi)
+    barycentric: bool = False
+    radius: float = 0.5
+    max_neighbors: int = 32
+    max_triangles: int = 4096
+
+
+def augment_batch(key: jax.Array, batch, config: AugmentConfig):
+    """Replace generated samples by BaryCentricSampling, then rotate every sample (jittable).
+
+    Args:
+        key: PRNG key of the step.
+        batch: a :class:`thrombojax.data.batching.Batch` (``frames [B, 3, N, 3]``).
+        config: the augmentations.
+    Returns:
+        ``(batch, overflow)``: the augmented batch and a ``[]`` bool, True when a triangle buffer
+        overflowed (the caller raises ``max_triangles`` and redoes the batch).
+    """
+
+    def one(k, frames, node_type, mask, generated):
+        k_bary, k_rot = jax.random.split(k)
+        overflow = jnp.zeros((), bool)
+        if config.barycentric:
+            triangles, count, overflow = find_sample_triangles(
+                frames[1],
+                mask,
+                radius=config.radius,
+                max_neighbors=config.max_neighbors,
+                max_triangles=config.max_triangles,
+            )
+            new, _, _ = barycentric_resample(k_bary, frames, node_type, mask, triangles, count)
+            frames = jnp.where(generated, new, frames)
+            overflow = overflow & generated
+        if config.max_rotation > 0:
+            frames = rotate_window(frames, random_rotation(k_rot, config.max_rotation))
+        return frames, overflow
+
+    keys = jax.random.split(key, batch.size)
+    frames, overflow = jax.vmap(one)(
+        keys, batch.frames, batch.node_type, batch.mask, batch.generated
+    )
+    return batch.replace(frames=frames), jnp.any(overflow)

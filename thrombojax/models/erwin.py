@@ -1,0 +1,360 @@
+"""Erwin: a ball-tree hierarchical transformer (Zhdanov et al. 2025), in Flax for one sample.
+
+The point cloud is ordered by a ball tree (``thrombojax.graph.balltree``: recursive median split
+on the widest axis, padded to a perfect binary tree), so a ball of ``m`` leaves is a contiguous
+slice of ``m`` rows and every operation is a reshape. The network is a U-Net over tree levels:
+
+    h      = MPNN embedding of (velocity, node-type one-hot) on the radius graph   [n, c0]
+    level 0: h in tree order                                                      [M, c0]
+    encoder level l: depth_l blocks, then pooling by stride s_l -> level l+1    [M/s, c_{l+1}]
+    bottleneck: blocks at the coarsest level
+    decoder level l: unpooling (+ the encoder's level-l output, additive U-Net skip), blocks
+    head: Dense-GELU-Dense -> [n, 3] normalised acceleration
+
+A block is pre-norm: ``x += BallMSA(RMSNorm(x)); x += SwiGLU(RMSNorm(x))``. BallMSA adds the
+positional term ``(p_i - c_B) W_pos`` (c_B the ball centre; the thesis' eq. writes ``P + c_B``,
+the official code subtracts the centre, which we follow), then multi-head attention inside each
+ball with the distance bias ``sigma_h * |p_i - p_j|`` (paper eq. 10; ``sigma_h`` learnable per
+head, initialised at -1 + 0.01 N(0, 1) as in the official code, so it acts as a fall-off).
+Blocks with odd index inside a layer run on the rotated tree (points rotated 45 deg before the
+tree is built) to mix information across balls, as in the official code.
+
+Conventions where the references disagree or our setting differs (documented choices):
+- Widths double per level: ``c_l = hidden * prod(strides[:l])`` as in the official code where
+  ``c_hidden`` is an int (the thesis gives one "hidden dimension 32": 32, 64, 128, 256).
+- Pooling/unpooling normalisation: the official code uses BatchNorm1d, whose batch statistics
+  would mix samples, padding and train/eval modes. We use a per-node LayerNorm (eps 1e-5, the
+  BatchNorm default eps) instead: jittable, single-sample and independent of padding.
+- Padding (mask False nodes and the tree's virtual leaves) never reaches a real node: padded keys
+  are masked out of attention, ball centres and pooled features use only real children, and
+  a pooled node is real if any child is. (The official code instead duplicates real points
+  into the virtual leaves and lets them attend; ball centres there are duplicate-weighted means.)
+- Ball sizes are clipped to the number of tree nodes at a level (static), so tiny clouds work.
+- Positions carry no gradient (the official code wraps them in ``no_grad``).
+- GELU in the head is the exact (erf) form, as torch's default; RMSNorm from ``layers``.
+- Dense kernels use a truncated normal with std 0.02 and zero bias, as the official code.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import ClassVar
+
+import flax.linen as nn
+import jax
+import jax.numpy as jnp
+from flax import struct
+
+from thrombojax.errors import ConfigError
+from thrombojax.graph.balltree import BallTree, build_balltree, level_sizes
+from thrombojax.graph.neighbors import NeighborList, radius_graph
+from thrombojax.models.layers import MPNNEmbedding, RMSNorm, SwiGLU
+from thrombojax.models.registry import ErwinConfig, FlaxSurrogate
+from thrombojax.types import ModelInput, node_type_one_hot
+
+__all__ = [
+    "ErwinGraph",
+    "ErwinNet",
+    "Erwin",
+    "ErwinSurrogate",
+    "BallMSA",
+    "ErwinBlock",
+    "build_erwin_graph",
+]
+
+_MASKED = -1e9  # additive logit for padded keys (finite, so an all-padding ball stays finite)
+
+
+def _dense(features: int, name: str | None = None) -> nn.Dense:
+    return nn.Dense(
+        features,
+        kernel_init=nn.initializers.truncated_normal(0.02),
+        bias_init=nn.initializers.zeros,
+        name=name,
+    )
+
+
+@struct.dataclass
+class ErwinGraph:
+    """Everything Erwin needs about one point cloud; built by :func:`build_erwin_graph` in jit.
+
+    Attributes:
+        tree: the :class:`BallTree` of the positions (slots ``perm [P]``, ``slot_mask [P]``,
+            ``inverse [N]``, rotated orderings ``rot_perm`` / ``rot_inverse`` per level).
+        neighbors: the radius graph (``indices [N, K]``, self loops included) of the embedding.
+        overflow: bool scalar, the neighbour list's overflow flag (re-allocate on the host).
+    """
+
+    tree: BallTree
+    neighbors: NeighborList
+    overflow: jax.Array
+
+
+def build_erwin_graph(config: ErwinConfig, inputs: ModelInput) -> ErwinGraph:
+    """Ball tree (plus rotated trees) and radius graph of ``inputs.positions`` (jittable).
+
+    Args:
+        config: the model config (``strides``, ``ball_sizes``, ``rotate``, ``radius``,
+            ``max_neighbors``).
+        inputs: the sample; padded rows (``mask`` False) enter neither the tree nor the graph.
+    Returns:
+        The :class:`ErwinGraph`.
+    """
+    nbrs = radius_graph(
+        inputs.positions, config.radius, config.max_neighbors, mask=inputs.mask, loop=True
+    )
+    tree = build_balltree(
+        inputs.positions, mask=inputs.mask, strides=tuple(config.strides),
+        ball_sizes=tuple(config.ball_sizes), rotate=float(config.rotate),
+    )
+    return ErwinGraph(tree=tree, neighbors=nbrs, overflow=nbrs.overflow)
+
+
+def _ball_view(a: jax.Array, m: int) -> jax.Array:
+    """``[M, ...] -> [M / m, m, ...]`` contiguous balls of ``m`` leaves."""
+    return a.reshape((a.shape[0] // m, m) + a.shape[1:])
+
+
+def _masked_centres(pos: jax.Array, valid: jax.Array) -> tuple[jax.Array, jax.Array]:
+    """Ball centres over real members. ``pos [B, m, 3]``, ``valid [B, m]`` -> ``[B, 1, 3]``, w."""
+    w = valid[..., None].astype(pos.dtype)
+    count = w.sum(axis=1, keepdims=True)
+    masked = (pos * w).sum(axis=1, keepdims=True) / jnp.maximum(count, 1.0)
+    centres = jnp.where(count > 0, masked, pos.mean(axis=1, keepdims=True))
+    return centres, w
+
+
+class BallMSA(nn.Module):
+    """Ball multi-head self-attention with positional term and distance fall-off (eqs. 8-10).
+
+    Attributes:
+        dim: feature width C (divisible by ``num_heads``).
+        num_heads: number of heads H.
+        ball_size: leaves per ball m (divides the number of rows).
+    """
+
+    dim: int
+    num_heads: int
+    ball_size: int
+
+    @nn.compact
+    def __call__(self, x: jax.Array, pos: jax.Array, valid: jax.Array) -> jax.Array:
+        """Args: x ``[M, C]``, pos ``[M, 3]``, valid ``[M]`` bool. Returns ``[M, C]``."""
+        m, h = self.ball_size, self.num_heads
+        e = self.dim // h
+        xb, pb, vb = _ball_view(x, m), _ball_view(pos, m), _ball_view(valid, m)
+        centres, w = _masked_centres(pb, vb)
+        xb = xb + _dense(self.dim, "pe_proj")((pb - centres) * w)
+        qkv = _dense(3 * self.dim, "qkv")(xb).reshape(xb.shape[:2] + (3, h, e))
+        q, k, v = qkv[:, :, 0], qkv[:, :, 1], qkv[:, :, 2]  # [B, m, H, E]
+        logits = jnp.einsum("bqhe,bkhe->bhqk", q, k) / math.sqrt(e)
+        sigma = self.param(
+            "sigma", lambda key: -1.0 + 0.01 * jax.random.normal(key, (h,), jnp.float32)
+        )
+        d2 = jnp.sum((pb[:, :, None, :] - pb[:, None, :, :]) ** 2, axis=-1)
+        dist = jnp.sqrt(jnp.maximum(d2, 1e-12))  # [B, m, m]
+        logits = logits + sigma[None, :, None, None] * dist[:, None]
+        logits = jnp.where(vb[:, None, None, :], logits, _MASKED)
+        attn = jax.nn.softmax(logits, axis=-1)
+        out = jnp.einsum("bhqk,bkhe->bqhe", attn, v).reshape(x.shape[0], self.dim)
+        return _dense(self.dim, "proj")(out)
+
+
+class ErwinBlock(nn.Module):
+    """Pre-norm transformer block: ``x + BallMSA(RMSNorm x)``, then ``x + SwiGLU(RMSNorm x)``."""
+
+    dim: int
+    num_heads: int
+    ball_size: int
+    mlp_ratio: int
+
+    @nn.compact
+    def __call__(self, x: jax.Array, pos: jax.Array, valid: jax.Array) -> jax.Array:
+        """Args: x ``[M, C]``, pos ``[M, 3]``, valid ``[M]``. Returns ``[M, C]``."""
+        x = x + BallMSA(self.dim, self.num_heads, self.ball_size, name="attn")(
+            RMSNorm(name="norm1")(x), pos, valid
+        )
+        return x + SwiGLU(self.dim * self.mlp_ratio, name="mlp")(RMSNorm(name="norm2")(x))
+
+
+class _Stage(nn.Module):
+    """``depth`` blocks at one tree level; odd blocks run in the rotated tree's order."""
+
+    dim: int
+    depth: int
+    num_heads: int
+    ball_size: int
+    mlp_ratio: int
+    rotate: bool
+
+    @nn.compact
+    def __call__(self, x, pos, valid, rot, inv):
+        """``x [M, C]``, ``pos [M, 3]``, ``valid [M]``; ``rot``/``inv`` ``[M]`` rotated order."""
+        for i in range(self.depth):
+            blk = ErwinBlock(self.dim, self.num_heads, self.ball_size, self.mlp_ratio)
+            if self.rotate and i % 2 == 1:
+                x = blk(x[rot], pos[rot], valid[rot])[inv]
+            else:
+                x = blk(x, pos, valid)
+        return x
+
+
+class _Pool(nn.Module):
+    """Coarsening by stride (eq. 12): concat children and their offsets, project, LayerNorm."""
+
+    out_dim: int
+    stride: int
+
+    @nn.compact
+    def __call__(self, x, pos, valid):
+        s = self.stride
+        xb, pb, vb = _ball_view(x, s), _ball_view(pos, s), _ball_view(valid, s)
+        centres, w = _masked_centres(pb, vb)
+        feats = jnp.concatenate(
+            [(xb * w).reshape(xb.shape[0], -1), ((pb - centres) * w).reshape(xb.shape[0], -1)],
+            axis=-1,
+        )
+        out = nn.LayerNorm(epsilon=1e-5, name="norm")(_dense(self.out_dim, "proj")(feats))
+        return out, centres[:, 0], vb.any(axis=1)
+
+
+class _Unpool(nn.Module):
+    """Refinement (eq. 13): parent + children's offsets -> per-child update, added to the skip."""
+
+    out_dim: int
+    stride: int
+
+    @nn.compact
+    def __call__(self, x, pos, skip, child_pos, child_valid):
+        s = self.stride
+        cb, vb = _ball_view(child_pos, s), _ball_view(child_valid, s)
+        rel = ((cb - pos[:, None]) * vb[..., None]).reshape(x.shape[0], -1)
+        up = _dense(s * self.out_dim, "proj")(jnp.concatenate([x, rel], axis=-1))
+        return nn.LayerNorm(epsilon=1e-5, name="norm")(skip + up.reshape(skip.shape))
+
+
+class ErwinNet(nn.Module):
+    """The Erwin U-Net on one point cloud (no batch axis).
+
+    Attributes:
+        hidden: width of level 0; level ``l`` has ``hidden * prod(strides[:l])``.
+        enc_heads, enc_depths: per level, encoder levels then the bottleneck (length L).
+        dec_heads, dec_depths: per decoder level ``0..L-2`` (length L - 1, finest first).
+        strides: pooling strides between levels (length L - 1).
+        ball_sizes: leaves per ball at each level (length L; clipped to the level size).
+        mlp_ratio: SwiGLU hidden width / block width.
+        rotate: use the rotated tree in every other block.
+        mp_steps: message-passing steps of the embedding.
+        out_dim: output channels (3: normalised acceleration).
+    """
+
+    hidden: int
+    enc_heads: tuple[int, ...]
+    enc_depths: tuple[int, ...]
+    dec_heads: tuple[int, ...]
+    dec_depths: tuple[int, ...]
+    strides: tuple[int, ...]
+    ball_sizes: tuple[int, ...]
+    mlp_ratio: int = 4
+    rotate: bool = True
+    mp_steps: int = 3
+    out_dim: int = 3
+
+    @nn.compact
+    def __call__(
+        self, features: jax.Array, positions: jax.Array, graph: ErwinGraph
+    ) -> jax.Array:
+        """Run the network.
+
+        Args:
+            features: ``[n, f]`` node features (velocity, node-type one-hot).
+            positions: ``[n, 3]`` scaled positions.
+            graph: the :class:`ErwinGraph` of these positions.
+        Returns:
+            ``[n, out_dim]``; padded rows (outside the tree) hold arbitrary finite values.
+        """
+        n_levels = len(self.enc_depths)
+        dims = [self.hidden * math.prod(self.strides[:i]) for i in range(n_levels)]
+        tree = graph.tree
+        sizes = level_sizes(tree.perm.shape[0], tuple(self.strides))
+        balls = [min(b, s) for b, s in zip(self.ball_sizes, sizes, strict=True)]
+        for lvl, (b, size) in enumerate(zip(balls, sizes, strict=True)):
+            if size % b or dims[lvl] % self.enc_heads[lvl]:
+                raise ConfigError(
+                    f"erwin: level {lvl}: ball size {b} must divide the {size} tree nodes and "
+                    f"heads {self.enc_heads[lvl]} the width {dims[lvl]}"
+                )
+        pos = jax.lax.stop_gradient(positions)
+
+        h = MPNNEmbedding(dims[0], self.mp_steps, name="embed")(
+            features, pos, graph.neighbors.indices
+        )
+        valid = tree.slot_mask
+        x = jnp.where(valid[:, None], h[tree.perm], 0.0)  # padding copies start from zero
+        p = pos[tree.perm]  # padding copies sit on the real point they copy (finite)
+        if self.rotate and len(tree.rot_perm) != n_levels:
+            raise ValueError(f"rotate needs {n_levels} rotated orderings, got {len(tree.rot_perm)}")
+        rots = tree.rot_perm if self.rotate else (None,) * n_levels
+        invs = tree.rot_inverse if self.rotate else (None,) * n_levels
+
+        skips = []
+        for lvl in range(n_levels):
+            x = _Stage(
+                dims[lvl], self.enc_depths[lvl], self.enc_heads[lvl], balls[lvl],
+                self.mlp_ratio, self.rotate, name=f"enc_{lvl}",
+            )(x, p, valid, rots[lvl], invs[lvl])
+            if lvl < n_levels - 1:
+                skips.append((x, p, valid))
+                x, p, valid = _Pool(dims[lvl + 1], self.strides[lvl], name=f"pool_{lvl}")(
+                    x, p, valid
+                )
+        for lvl in reversed(range(n_levels - 1)):
+            skip, child_p, child_valid = skips[lvl]
+            x = _Unpool(dims[lvl], self.strides[lvl], name=f"unpool_{lvl}")(
+                x, p, skip, child_p, child_valid
+            )
+            p, valid = child_p, child_valid
+            x = _Stage(
+                dims[lvl], self.dec_depths[lvl], self.dec_heads[lvl], balls[lvl],
+                self.mlp_ratio, self.rotate, name=f"dec_{lvl}",
+            )(x, p, valid, rots[lvl], invs[lvl])
+
+        out = x[tree.inverse]  # node order; padded rows read slot 0 (finite, masked downstream)
+        out = jax.nn.gelu(_dense(dims[0], "head_0")(out), approximate=False)
+        return _dense(self.out_dim, "head_1")(out)
+
+
+class Erwin(nn.Module):
+    """Erwin on a :class:`ModelInput`: features are velocity and node-type one-hot (no position).
+
+    Attributes:
+        config: the :class:`ErwinConfig`.
+    """
+
+    config: ErwinConfig
+
+    @nn.compact
+    def __call__(self, inputs: ModelInput, graph: ErwinGraph, train: bool = False) -> jax.Array:
+        """Returns ``[n, 3]`` normalised acceleration (``train`` unused: no dropout)."""
+        c = self.config
+        feats = jnp.concatenate([inputs.velocity, node_type_one_hot(inputs.node_type)], axis=-1)
+        net = ErwinNet(
+            hidden=c.hidden, enc_heads=tuple(c.enc_heads), enc_depths=tuple(c.enc_depths),
+            dec_heads=tuple(c.dec_heads), dec_depths=tuple(c.dec_depths),
+            strides=tuple(c.strides), ball_sizes=tuple(c.ball_sizes), mlp_ratio=c.mlp_ratio,
+            rotate=c.rotate > 0, mp_steps=c.mp_steps, name="net",
+        )
+        return net(feats, inputs.positions, graph)
+
+
+@dataclasses.dataclass(frozen=True)
+class ErwinSurrogate(FlaxSurrogate):
+    """Erwin behind the registry contract; its graph is an :class:`ErwinGraph`."""
+
+    module_cls: ClassVar[type[nn.Module]] = Erwin
+    self_loops: ClassVar[bool] = True
+
+    def build_graph(self, inputs: ModelInput) -> ErwinGraph:
+        """Ball tree, rotated trees and radius graph of ``inputs.positions`` (jittable)."""
+        return build_erwin_graph(self.config, inputs)

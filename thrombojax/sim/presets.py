@@ -1,0 +1,128 @@
+"""Dataset presets of the built-in solver: BendVessel, ClotEntry and tiny versions for tests.
+
+Units are scaled: length = nominal vessel radius, density 1, clot Young's modulus ~1. Every
+``*_range`` is a closed interval ``(low, high)`` from which each simulation draws uniformly
+(``generate.draw_case``); the drawn values are stored as simulation attributes.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+from thrombojax.errors import ConfigError
+
+__all__ = ["Preset", "PRESETS", "get_preset"]
+
+
+@dataclasses.dataclass(frozen=True)
+class Preset:
+    """A dataset recipe.
+
+    Attributes:
+        name: preset name; kind: ``"bend"`` (one bent tube, rotated copies) or ``"tortuous"``
+            (a random vessel per simulation).
+        n_sims: simulations in the dataset; n_frames: frames after the initial one.
+        reference_wall_time_s: the study's Abaqus wall time per simulation.
+        radius: nominal (inlet) vessel radius.
+        leg_in, leg_out, bend_radius, bend_angle_deg: bent tube (kind "bend").
+        rotation_step_deg, rotation_axis: simulation i is rotated by ``i * step`` about the axis.
+        length, min_bend_radius, radius_end, wobble: tortuous vessel (kind "tortuous").
+        spacing: centreline point spacing; wall_rings, wall_around: wall point rings.
+        clot_cross, clot_cells: hex cells across the clot diameter and along its length.
+        clot_length: placed clot length along the centreline.
+        clot_start_range: arc length of the clot's back end (bend: offset from the bend start).
+        roll_range: degrees; oversize_range: rest radius / local radius; friction_range;
+        drive_ratio_range: final drive / estimated friction hold; flow_speed_range: terminal
+        speed of a free clot; young_range, poisson_range: clot stiffness.
+        squeeze: placed radius / local radius; ramp_time: drive ramp duration.
+        penetration_target: contact stiffness aims at this penetration / radius;
+        min_contact_pressure: floor of the pressure (times E) that sizes the stiffness.
+        contact_damping: normal damping ratio; min_alpha: lower bound of mass damping.
+        safety: fraction of the stable substep; exit_margin: distance past the outlet.
+        n_buffer: stored dense frames (odd); max_substeps: safety cap per simulation.
+        batch_size: simulations run together with ``vmap`` (same mesh; 1 = one at a time).
+    """
+
+    name: str
+    kind: str
+    n_sims: int
+    n_frames: int
+    reference_wall_time_s: float
+    radius: float = 1.0
+    leg_in: float = 5.0
+    leg_out: float = 10.0
+    bend_radius: float = 3.0
+    bend_angle_deg: float = 90.0
+    rotation_step_deg: float = 10.0
+    rotation_axis: str = "x"
+    length: float = 60.0
+    min_bend_radius: float = 3.0
+    radius_end: float = 1.18
+    wobble: float = 0.06
+    spacing: float = 0.2
+    wall_rings: int = 27
+    wall_around: int = 26
+    clot_cross: int = 4
+    clot_cells: int = 10
+    clot_length: float = 3.0
+    clot_start_range: tuple[float, float] = (0.5, 1.5)
+    roll_range: tuple[float, float] = (0.0, 90.0)
+    oversize_range: tuple[float, float] = (1.1, 1.25)
+    friction_range: tuple[float, float] = (0.1, 0.5)
+    drive_ratio_range: tuple[float, float] = (1.6, 2.4)
+    flow_speed_range: tuple[float, float] = (0.2, 0.3)
+    young_range: tuple[float, float] = (0.8, 1.2)
+    poisson_range: tuple[float, float] = (0.45, 0.49)
+    squeeze: float = 0.97
+    ramp_time: float = 6.0
+    penetration_target: float = 0.005
+    min_contact_pressure: float = 0.3
+    contact_damping: float = 0.5
+    min_alpha: float = 0.5
+    safety: float = 0.7
+    exit_margin: float = 0.5
+    n_buffer: int = 161
+    max_substeps: int = 200_000
+    batch_size: int = 5
+
+    def to_dict(self) -> dict:
+        """JSON-serialisable dictionary of every field."""
+        return dataclasses.asdict(self)
+
+
+PRESETS: dict[str, Preset] = {
+    "bendvessel": Preset(
+        name="bendvessel", kind="bend", n_sims=20, n_frames=40, reference_wall_time_s=180.0,
+        n_buffer=161,
+    ),
+    "bendvessel-tiny": Preset(
+        name="bendvessel-tiny", kind="bend", n_sims=2, n_frames=8, reference_wall_time_s=180.0,
+        leg_in=2.0, leg_out=3.0, bend_radius=2.5, spacing=0.25, wall_rings=12, wall_around=12,
+        clot_cells=6, clot_length=2.0, clot_start_range=(0.3, 0.8), n_buffer=33,
+        poisson_range=(0.45, 0.49), max_substeps=40_000,
+    ),
+    "clotentry": Preset(
+        name="clotentry", kind="tortuous", n_sims=10, n_frames=200,
+        reference_wall_time_s=1500.0, length=60.0, spacing=0.25, wall_rings=340,
+        wall_around=64, clot_cross=12, clot_cells=30, clot_length=5.0,
+        clot_start_range=(1.0, 3.0), ramp_time=12.0, n_buffer=801, batch_size=1,
+        max_substeps=400_000,
+    ),
+    "clotentry-tiny": Preset(
+        name="clotentry-tiny", kind="tortuous", n_sims=2, n_frames=10,
+        reference_wall_time_s=1500.0, length=14.0, spacing=0.25, radius_end=1.05,
+        wobble=0.03, wall_rings=30, wall_around=12, clot_cross=4, clot_cells=6,
+        clot_length=2.0, clot_start_range=(0.5, 1.5), n_buffer=41, batch_size=1,
+        max_substeps=60_000,
+    ),
+}  # fmt: skip
+
+
+def get_preset(name: str) -> Preset:
+    """The preset called ``name`` (one of :data:`PRESETS`); unknown names raise ConfigError."""
+    try:
+        return PRESETS[name.lower()]
+    except KeyError:
+        raise ConfigError(
+            f"unknown solver preset {name!r}; known presets: {', '.join(PRESETS)}"
+        ) from None

@@ -1,0 +1,317 @@
+"""The training loop: epochs, validation, checkpoints, exact resume, NaN guard, logs, plots.
+
+Each optimiser step ``s`` (epoch ``e = s // steps_per_epoch``, position ``p``) is a pure function
+of the run's seed and ``s``: the epoch's data order (:func:`thrombojax.data.batching.epoch_plan`),
+the node subsampling (seeded by ``(seed, e, p)``) and the PRNG key
+``fold_in(run_key, s)`` (augmentations, noise, dropout). The checkpoint therefore only needs the
+state, the key and the step (the position is stored too, for humans and checks), and
+``resume=True`` continues bit-for-bit where the last checkpoint stopped.
+
+Per epoch: the mean training loss and MSE, the validation loss and MSE (the study's metric, the
+best checkpoint is the one with the lowest validation MSE; without a validation split, the
+training MSE), the learning rate and the time go to ``metrics.jsonl``. A non-finite loss stops
+the run with :class:`TrainingDivergedError`; the last good checkpoint stays on disk.
+"""
+
+from __future__ import annotations
+
+import functools
+import json
+import math
+import pathlib
+import time
+from collections.abc import Callable
+from typing import Any
+
+import jax
+import numpy as np
+from tqdm.auto import tqdm
+
+from thrombojax.data.augment import AugmentConfig, augment_batch
+from thrombojax.data.batching import (
+    compute_target_stats,
+    epoch_plan,
+    load_store,
+    make_batch,
+    padding_budget,
+)
+from thrombojax.errors import CapacityOverflowError, ConfigError, ThrombojaxError
+from thrombojax.train.config import TrainConfig
+from thrombojax.train.schedule import make_optimizer, make_schedule
+from thrombojax.train.state import (
+    TrainedModel,
+    latest_step,
+    load_trained,
+    read_run_config,
+    restore_checkpoint,
+    save_checkpoint,
+    write_run_config,
+)
+from thrombojax.train.step import (
+    data_mesh,
+    init_state,
+    make_eval_step,
+    make_train_step,
+    replicate,
+    shard_batch,
+)
+
+__all__ = ["train", "TrainingDivergedError", "plot_losses"]
+
+
+class TrainingDivergedError(ThrombojaxError, FloatingPointError):
+    """The training loss became NaN or infinite; the last good checkpoint is kept."""
+
+
+def _resolve(config: TrainConfig | dict | None, overrides: dict) -> TrainConfig:
+    if config is None:
+        config = TrainConfig()
+    elif isinstance(config, dict):
+        config = TrainConfig.from_dict(config)
+    return config.replace(**overrides) if overrides else config
+
+
+def train(
+    dataset_path: str | pathlib.Path,
+    model_name: str,
+    out_dir: str | pathlib.Path,
+    *,
+    config: TrainConfig | dict | None = None,
+    resume: bool = False,
+    progress: bool = True,
+    callback: Callable[[int, dict], None] | None = None,
+    **overrides: Any,
+) -> TrainedModel:
+    """Train a surrogate on a dataset and write a run directory.
+
+    Args:
+        dataset_path: a thrombojax HDF5 dataset.
+        model_name: ``mgn``, ``transolver`` or ``erwin`` (any registered model).
+        out_dir: the run directory (created; must hold no run unless ``resume``).
+        config: a :class:`TrainConfig` (or its dict); ``overrides`` replace its fields.
+        resume: continue the run in ``out_dir`` from its last checkpoint; its saved config is
+            used, and overrides that contradict it raise :class:`ConfigError`.
+        progress: show a tqdm progress bar.
+        callback: called as ``callback(step, metrics)`` after every step (host floats), after
+            any checkpoint of that step is on disk.
+    Returns:
+        The best :class:`TrainedModel` (lowest validation MSE).
+    """
+    from thrombojax.data.scaling import fit_scaling
+    from thrombojax.data.splits import split_simulations
+    from thrombojax.io.hdf5 import open_dataset
+    from thrombojax.models.registry import canonical_name, config_to_dict, create_model, get_config
+
+    out_dir = pathlib.Path(out_dir)
+    model_name = canonical_name(model_name)
+    cfg = _resolve(config, overrides)
+    if resume:
+        saved = read_run_config(out_dir)
+        saved_cfg = TrainConfig.from_dict(saved["train"])
+        asked = {k: v for k, v in overrides.items() if getattr(saved_cfg, k) != v}
+        if saved["model"] != model_name or asked:
+            raise ConfigError(
+                f"{out_dir}: --resume continues the saved run (model '{saved['model']}'); "
+                f"conflicting options: {asked or {'model': model_name}}"
+            )
+        cfg = saved_cfg
+    elif latest_step(out_dir / "checkpoints" / "last") is not None:
+        raise FileExistsError(
+            f"{out_dir}: already holds a training run; use --resume or a new --out"
+        )
+    out_dir.mkdir(parents=True, exist_ok=True)
+
+    ds = open_dataset(dataset_path)
+    scaling = fit_scaling(ds)
+    split = split_simulations(list(ds.names), n_test=cfg.n_test, n_val=cfg.n_val,
+                              seed=cfg.split_seed)
+    train_store = load_store(ds, split.train, scaling, skip=cfg.skip_frames)
+    val_store = load_store(ds, split.val, scaling, skip=cfg.skip_frames) if split.val else None
+    stats = compute_target_stats(train_store)
+
+    model_over = dict(cfg.model_config)
+    if cfg.radius is not None:
+        model_over["radius"] = cfg.radius
+    model_cfg = get_config(model_name, tiny=cfg.tiny, **model_over)
+    model = create_model(model_name, model_cfg)
+    batch_size = cfg.batch_size or getattr(model_cfg, "batch_size", 8)
+    lr = cfg.lr or getattr(model_cfg, "learning_rate", 1e-4)
+    mesh = data_mesh()
+    if batch_size % mesh.size:
+        raise ConfigError(f"batch size {batch_size} is not a multiple of the {mesh.size} devices")
+    max_nodes = max(train_store.max_nodes, val_store.max_nodes if val_store else 0)
+    budget = padding_budget(max_nodes, cfg.nodes_per_sample)
+    plan_of = functools.partial(epoch_plan, len(train_store), bary_ratio=cfg.bary_ratio,
+                                batch_size=batch_size, seed=cfg.seed)
+    steps_per_epoch = plan_of(epoch=0).shape[0]
+    total_steps = cfg.epochs * steps_per_epoch
+    tx = make_optimizer(
+        make_schedule(lr, total_steps, round(cfg.warmup_epochs * steps_per_epoch)),
+        weight_decay=cfg.weight_decay, grad_clip=cfg.grad_clip,
+    )
+    batch_of = functools.partial(make_batch, train_store, budget=budget,
+                                 nodes_per_sample=cfg.nodes_per_sample, seed=cfg.seed)
+    run_key, init_key = jax.random.split(jax.random.PRNGKey(cfg.seed))
+    state = init_state(model, tx, init_key, batch_of(plan_of(epoch=0)[0]))
+    run_config = {
+        "model": model_name, "model_config": config_to_dict(model_cfg), "train": cfg.to_dict(),
+        "dataset": str(pathlib.Path(dataset_path).resolve()), "stats": stats.to_dict(),
+        "scaling": scaling.to_dict(), "batch_size": batch_size, "lr": lr, "budget": budget,
+        "steps_per_epoch": steps_per_epoch, "total_steps": total_steps, "devices": mesh.size,
+        "split": {"train": list(split.train), "val": list(split.val), "test": list(split.test)},
+    }
+    best = math.inf
+    acc = np.zeros(3)  # running (loss * nodes, mse * nodes, nodes) of the current epoch
+    if resume:
+        state, run_key, meta = restore_checkpoint(out_dir / "checkpoints" / "last", state, run_key)
+        best, acc = float(meta["best"]), np.asarray(meta["epoch_acc"], np.float64)
+        _truncate_log(out_dir / "metrics.jsonl", int(state.step))
+    else:
+        write_run_config(out_dir, run_config)
+        (out_dir / "metrics.jsonl").write_text("")
+
+    aug_cfg = AugmentConfig(
+        max_rotation=cfg.max_rotation, barycentric=cfg.bary_ratio > 0,
+        radius=cfg.bary_radius or model_cfg.radius, max_neighbors=cfg.bary_max_neighbors,
+        max_triangles=cfg.bary_max_triangles,
+    )
+    augment = jax.jit(functools.partial(augment_batch, config=aug_cfg))
+    train_step = make_train_step(model, tx, stats, noise_std=cfg.noise_std,
+                                 noise_gamma=cfg.noise_gamma)
+    eval_step = make_eval_step(model, stats)
+    val_batches = _eval_batches(val_store, budget, batch_size, cfg) if val_store else []
+    schedule = make_schedule(lr, total_steps, round(cfg.warmup_epochs * steps_per_epoch))
+    state = replicate(state, mesh)
+    ckpt = out_dir / "checkpoints"
+
+    def checkpoint(which: str, epoch: int, position: int) -> None:
+        meta = {"epoch": epoch, "position": position, "best": best, "epoch_acc": acc.tolist(),
+                **run_config}
+        save_checkpoint(ckpt / which, jax.device_get(state), run_key, meta)
+
+    start = int(jax.device_get(state.step))
+    bar = tqdm(total=total_steps, initial=start, disable=not progress, desc=f"train {model_name}")
+    t0 = time.perf_counter()
+    for epoch in range(start // steps_per_epoch, cfg.epochs):
+        plan = plan_of(epoch=epoch)
+        for position in range(start - epoch * steps_per_epoch if epoch == start // steps_per_epoch
+                              else 0, steps_per_epoch):
+            step = epoch * steps_per_epoch + position
+            aug_key, step_key = jax.random.split(jax.random.fold_in(run_key, step))
+            host_batch = batch_of(plan[position], epoch=epoch, position=position)
+            while True:
+                batch, overflow = augment(aug_key, shard_batch(host_batch, mesh))
+                if not bool(overflow):
+                    break
+                aug_cfg = AugmentConfig(**{**aug_cfg.__dict__,
+                                           "max_triangles": 2 * aug_cfg.max_triangles})
+                augment = jax.jit(functools.partial(augment_batch, config=aug_cfg))
+            new_state, metrics = train_step(state, batch, step_key)
+            metrics = {k: float(v) for k, v in jax.device_get(metrics).items()}
+            if not math.isfinite(metrics["loss"]):
+                _log(out_dir, {"event": "nan", "step": step + 1, "epoch": epoch, **metrics})
+                raise TrainingDivergedError(
+                    f"{out_dir}: training loss became {metrics['loss']} at step {step + 1} "
+                    f"(epoch {epoch}); the last good checkpoint is kept in {ckpt / 'last'}; "
+                    "lower --lr or set grad_clip"
+                )
+            if metrics["overflow"]:
+                raise CapacityOverflowError(
+                    f"model '{model_name}': graph buffer overflow at step {step + 1}; raise its "
+                    "capacity in the model config"
+                )
+            state = new_state
+            acc += np.array([metrics["loss"], metrics["mse"], 1.0]) * metrics["nodes"]
+            last_of_epoch = position == steps_per_epoch - 1
+            if last_of_epoch:
+                record = _end_epoch(epoch, step + 1, acc, val_batches, eval_step, state, mesh,
+                                    float(schedule(step)), time.perf_counter() - t0)
+                _log(out_dir, record)
+                score = record.get("val_mse", record["train_mse"])
+                acc = np.zeros(3)
+                if score < best:
+                    best = score
+                    checkpoint("best", epoch + 1, 0)
+                checkpoint("last", epoch + 1, 0)
+                bar.set_postfix(loss=f"{record['train_loss']:.3g}",
+                                val=f"{record.get('val_mse', float('nan')):.3g}")
+            elif cfg.checkpoint_every and (step + 1) % cfg.checkpoint_every == 0:
+                checkpoint("last", epoch, position + 1)
+            bar.update(1)
+            if callback is not None:
+                callback(step + 1, metrics)
+    bar.close()
+    plot_losses(out_dir / "metrics.jsonl", out_dir / "loss.png")
+    return load_trained(out_dir, which="best")
+
+
+def _eval_batches(store, budget: int, batch_size: int, cfg: TrainConfig) -> list:
+    """Validation batches: every window once, fixed subsample (seed, epoch -1), no augmentation."""
+    plan = epoch_plan(len(store), bary_ratio=0.0, batch_size=batch_size, seed=cfg.seed, epoch=0)
+    plan = plan.reshape(-1, 2)
+    order = np.argsort(np.where(plan[:, 0] < 0, len(store), plan[:, 0]), kind="stable")
+    plan = plan[order].reshape(-1, batch_size, 2)
+    return [
+        make_batch(store, entries, budget, nodes_per_sample=cfg.nodes_per_sample,
+                   seed=cfg.seed, epoch=-1, position=i)
+        for i, entries in enumerate(plan)
+    ]
+
+
+def _end_epoch(epoch, step, acc, val_batches, eval_step, state, mesh, lr, elapsed) -> dict:
+    nodes = max(acc[2], 1.0)
+    record = {"epoch": epoch + 1, "step": step, "train_loss": acc[0] / nodes,
+              "train_mse": acc[1] / nodes, "lr": lr, "time_s": elapsed}
+    if val_batches:
+        tot = np.zeros(3)
+        for batch in val_batches:
+            m = jax.device_get(eval_step(state.params, shard_batch(batch, mesh)))
+            tot += np.array([m["loss"], m["mse"], 1.0]) * float(m["nodes"])
+        record["val_loss"] = tot[0] / max(tot[2], 1.0)
+        record["val_mse"] = tot[1] / max(tot[2], 1.0)
+    return {k: float(v) if isinstance(v, np.floating | float) else v for k, v in record.items()}
+
+
+def _log(out_dir: pathlib.Path, record: dict) -> None:
+    with open(out_dir / "metrics.jsonl", "a") as f:
+        f.write(json.dumps(record) + "\n")
+
+
+def _truncate_log(path: pathlib.Path, step: int) -> None:
+    """Drop log lines written after the checkpoint we resume from."""
+    if not path.is_file():
+        return
+    lines = [ln for ln in path.read_text().splitlines() if ln.strip()]
+    keep = [ln for ln in lines if json.loads(ln).get("step", 0) <= step]
+    path.write_text("".join(ln + "\n" for ln in keep))
+
+
+def plot_losses(metrics_path: str | pathlib.Path, out_png: str | pathlib.Path) -> pathlib.Path:
+    """Plot training / validation loss and MSE per epoch from ``metrics.jsonl`` (log scale).
+
+    Returns:
+        The PNG path.
+    """
+    from matplotlib.figure import Figure
+
+    records = [json.loads(ln) for ln in pathlib.Path(metrics_path).read_text().splitlines()
+               if ln.strip()]
+    records = [r for r in records if "epoch" in r and "train_loss" in r]
+    fig = Figure(figsize=(9, 3.5))
+    axes = fig.subplots(1, 2)
+    for ax, key, title in ((axes[0], "loss", "loss (normalised acceleration)"),
+                           (axes[1], "mse", "MSE of s_t+1 (scaled coords)")):
+        for split in ("train", "val"):
+            pts = [(r["epoch"], r[f"{split}_{key}"]) for r in records if f"{split}_{key}" in r]
+            if pts:
+                ep, val = zip(*pts, strict=True)
+                marker = "." if len(pts) < 30 else ""
+                ax.plot(ep, np.maximum(val, 1e-30), label=split, marker=marker)
+        ax.set_yscale("log")
+        ax.set_xlabel("epoch")
+        ax.set_title(title)
+        ax.legend()
+    fig.tight_layout()
+    out_png = pathlib.Path(out_png)
+    fig.savefig(out_png, dpi=100)
+    return out_png

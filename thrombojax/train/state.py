@@ -1,0 +1,213 @@
+"""Training state, orbax checkpoints and the trained model a run leaves behind.
+
+Run directory layout (CONTRACT.md [E])::
+
+    run_dir/config.json              the run's full config, normalisation stats and scaling
+    run_dir/checkpoints/last/<step>/ the latest checkpoint (kept: 1)
+    run_dir/checkpoints/best/<step>/ the checkpoint with the lowest validation MSE (kept: 1)
+    run_dir/metrics.jsonl            one JSON object per epoch (and the NaN-guard event, if any)
+    run_dir/loss.png                 loss curves, written at the end
+
+A checkpoint has three orbax items: ``params`` (the model variables), ``train`` (optimiser state,
+step and RNG key data) and ``meta`` (JSON: epoch, position in the epoch's data order, best
+validation metric, and the same config / stats / scaling as ``config.json``), so one checkpoint
+directory is enough to restore a model. Orbax writes each checkpoint to a temporary directory and
+renames it when complete, so a run killed while saving keeps its previous checkpoint.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import pathlib
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import orbax.checkpoint as ocp
+from flax import struct
+
+from thrombojax.errors import ConfigError
+from thrombojax.types import TargetStats
+
+__all__ = [
+    "TrainState",
+    "TrainedModel",
+    "save_checkpoint",
+    "restore_checkpoint",
+    "latest_step",
+    "load_trained",
+    "write_run_config",
+    "read_run_config",
+]
+
+
+@struct.dataclass
+class TrainState:
+    """What changes during training (a pytree).
+
+    Attributes:
+        step: ``[]`` int32 optimiser steps done.
+        params: model variables.
+        opt_state: optax state.
+    """
+
+    step: jax.Array
+    params: Any
+    opt_state: Any
+
+
+@dataclasses.dataclass(frozen=True)
+class TrainedModel:
+    """A trained surrogate with everything needed to run it on a dataset.
+
+    Attributes:
+        model: the surrogate (:func:`thrombojax.models.registry.create_model`).
+        params: its variables.
+        stats: acceleration normalisation statistics (training split, clot nodes).
+        scaling: the dataset's isotropic map to [-1, 1] (:class:`thrombojax.data.scaling.Scaling`).
+        config: the run's full config (``config.json``).
+    """
+
+    model: Any
+    params: Any
+    stats: TargetStats
+    scaling: Any
+    config: dict
+
+
+def _manager(directory: pathlib.Path, *, read_only: bool = False) -> ocp.CheckpointManager:
+    options = ocp.CheckpointManagerOptions(
+        max_to_keep=1, enable_async_checkpointing=False, create=not read_only, read_only=read_only
+    )
+    return ocp.CheckpointManager(
+        directory.resolve(), options=options, item_names=("params", "train", "meta")
+    )
+
+
+def save_checkpoint(directory: str | pathlib.Path, state: TrainState, rng: jax.Array, meta: dict):
+    """Save ``state``, the RNG key and JSON metadata as checkpoint ``state.step`` (keeps one).
+
+    Args:
+        directory: e.g. ``run_dir/checkpoints/last``.
+        state: the training state (replicated or host arrays).
+        rng: the run's base PRNG key (raw ``uint32`` key data).
+        meta: JSON-serialisable metadata.
+    """
+    step = int(jax.device_get(state.step))
+    train = {"opt_state": state.opt_state, "step": state.step, "rng": rng}
+    with _manager(pathlib.Path(directory)) as mngr:
+        mngr.save(
+            step,
+            args=ocp.args.Composite(
+                params=ocp.args.StandardSave(state.params),
+                train=ocp.args.StandardSave(train),
+                meta=ocp.args.JsonSave(meta),
+            ),
+            force=True,
+        )
+        mngr.wait_until_finished()
+
+
+def latest_step(directory: str | pathlib.Path) -> int | None:
+    """The step of the checkpoint in ``directory``, ``None`` when there is none."""
+    directory = pathlib.Path(directory)
+    if not directory.is_dir():
+        return None
+    with _manager(directory, read_only=True) as mngr:
+        return mngr.latest_step()
+
+
+def restore_checkpoint(
+    directory: str | pathlib.Path, target: TrainState | None = None, rng_target: Any = None
+) -> tuple[Any, Any, dict]:
+    """Restore the latest checkpoint of ``directory``.
+
+    Args:
+        directory: a checkpoint directory written by :func:`save_checkpoint`.
+        target: a state with the right structure (and shardings); ``None`` restores the params
+            only (the state slot of the result is then the params).
+        rng_target: an example RNG key (structure of the saved key) when ``target`` is given.
+    Returns:
+        ``(state or params, rng or None, meta)``.
+    """
+    directory = pathlib.Path(directory)
+    step = latest_step(directory)
+    if step is None:
+        raise ConfigError(f"{directory}: no checkpoint to restore")
+    with _manager(directory, read_only=True) as mngr:
+        if target is None:
+            out = mngr.restore(
+                step,
+                args=ocp.args.Composite(
+                    params=ocp.args.StandardRestore(), meta=ocp.args.JsonRestore()
+                ),
+            )
+            return jax.tree.map(jnp.asarray, out["params"]), None, dict(out["meta"])
+        train_target = {"opt_state": target.opt_state, "step": target.step, "rng": rng_target}
+        out = mngr.restore(
+            step,
+            args=ocp.args.Composite(
+                params=ocp.args.StandardRestore(target.params),
+                train=ocp.args.StandardRestore(train_target),
+                meta=ocp.args.JsonRestore(),
+            ),
+        )
+    train = out["train"]
+    state = TrainState(step=train["step"], params=out["params"], opt_state=train["opt_state"])
+    return state, train["rng"], dict(out["meta"])
+
+
+def write_run_config(run_dir: str | pathlib.Path, config: dict) -> None:
+    """Write ``run_dir/config.json`` (atomically)."""
+    path = pathlib.Path(run_dir) / "config.json"
+    tmp = path.with_suffix(".json.tmp")
+    tmp.write_text(json.dumps(config, indent=2, sort_keys=True, default=_json_default))
+    tmp.replace(path)
+
+
+def read_run_config(run_dir: str | pathlib.Path) -> dict:
+    """Read ``run_dir/config.json``; a missing file raises FileNotFoundError naming it."""
+    path = pathlib.Path(run_dir) / "config.json"
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: not a thrombojax run directory (no config.json)")
+    return json.loads(path.read_text())
+
+
+def _json_default(value: Any) -> Any:
+    if isinstance(value, np.ndarray | jax.Array):
+        return np.asarray(value).tolist()
+    if isinstance(value, np.generic):
+        return value.item()
+    raise TypeError(f"not JSON serialisable: {type(value).__name__}")
+
+
+def load_trained(run_dir: str | pathlib.Path, *, which: str = "best") -> TrainedModel:
+    """Load a trained model from a run directory.
+
+    Args:
+        run_dir: the ``--out`` directory of ``thrombojax train``.
+        which: ``"best"`` (lowest validation MSE) or ``"last"``.
+    Returns:
+        The :class:`TrainedModel`.
+    """
+    from thrombojax.data.scaling import Scaling
+    from thrombojax.models.registry import config_from_dict, create_model
+
+    if which not in ("best", "last"):
+        raise ConfigError(f"which must be 'best' or 'last', got {which!r}")
+    run_dir = pathlib.Path(run_dir)
+    config = read_run_config(run_dir)
+    ckpt = run_dir / "checkpoints" / which
+    if latest_step(ckpt) is None:
+        raise ConfigError(f"{run_dir}: no '{which}' checkpoint in {ckpt}")
+    params, _, _ = restore_checkpoint(ckpt)
+    model = create_model(config["model"], config_from_dict(config["model"], config["model_config"]))
+    return TrainedModel(
+        model=model,
+        params=params,
+        stats=TargetStats.from_dict(config["stats"]),
+        scaling=Scaling.from_dict(config["scaling"]),
+        config=config,
+    )
