@@ -24,11 +24,13 @@ def _window(n_vessel=40, n_clot=24, n_pad=8, seed=0):
     """A synthetic window: a ring of vessel nodes and a moving, deforming clot blob."""
     rng = np.random.default_rng(seed)
     ang = np.linspace(0, 2 * np.pi, n_vessel, endpoint=False)
-    vessel = np.stack([0.6 * np.cos(ang), 0.6 * np.sin(ang), 0.1 * rng.standard_normal(n_vessel)], 1)
+    z = 0.1 * rng.standard_normal(n_vessel)
+    vessel = np.stack([0.6 * np.cos(ang), 0.6 * np.sin(ang), z], 1)
     clot = 0.15 * rng.standard_normal((n_clot, 3))
     frames = []
     for k in range(3):
-        c = clot * (1 + 0.05 * k + 0.03 * k * k) + np.array([0.02 * k + 0.01 * k * k, 0.0, 0.01 * k])
+        shift = np.array([0.02 * k + 0.01 * k * k, 0.0, 0.01 * k])
+        c = clot * (1 + 0.05 * k + 0.03 * k * k) + shift
         frames.append(np.concatenate([vessel, c, np.zeros((n_pad, 3))]))
     frames = np.asarray(frames, np.float32)
     node_type = np.concatenate(

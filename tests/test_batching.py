@@ -111,3 +111,13 @@ def test_load_store_scales_and_lists_windows(tmp_path):
     np.testing.assert_array_equal(store.windows, [[0, 2], [0, 3], [1, 2], [1, 3], [1, 4]])
     np.testing.assert_allclose(store.positions[1], scaling.apply(ds.positions("s0")), atol=1e-5)
     assert np.abs(np.concatenate([p.reshape(-1) for p in store.positions])).max() <= 1.0 + 1e-6
+
+
+def test_isotropic_stats_for_rotations():
+    store = _store()
+    per_axis = compute_target_stats(store)
+    iso = compute_target_stats(store, isotropic=True)
+    np.testing.assert_array_equal(iso.mean, 0.0)
+    assert np.allclose(iso.std, iso.std[0])
+    second = np.asarray(per_axis.std) ** 2 + np.asarray(per_axis.mean) ** 2
+    np.testing.assert_allclose(iso.std[0] ** 2, second.mean(), rtol=1e-5)

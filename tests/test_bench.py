@@ -23,14 +23,14 @@ def test_synthetic_cloud_shapes():
 
 def test_bench_cli_all_models(tmp_path, capsys):
     models = [m for m in ("mgn", "transolver", "erwin") if m in MODEL_NAMES]
-    assert main(["bench", "--models", ",".join(models), "--cases", "bendvessel,clotentry",
+    assert main(["bench", "--models", ",".join(models), "--cases", "bendvessel",
                  "--tiny", "--nodes", "128", "--max-steps", "3", "--repeats", "1",
                  "--out", str(tmp_path), "--quiet"]) == 0
     res = json.loads((tmp_path / "bench.json").read_text())
     assert {"device", "jax", "flax", "date", "load_avg_1m"} <= set(res["environment"])
     assert "no trained weights" in res["note"]
     assert [(r["model"], r["case"]) for r in res["results"]] == [
-        (m, c) for m in models for c in ("bendvessel", "clotentry")]
+        (m, "bendvessel") for m in models]
     for r in res["results"]:
         case = STUDY_CASES[r["case"]]
         assert r["n_nodes"] == 128 and r["timed_steps"] == 3 and r["extrapolated"]
@@ -41,3 +41,20 @@ def test_bench_cli_all_models(tmp_path, capsys):
     assert "vs Abaqus" in table and "device" in table
     assert "mgn" in capsys.readouterr().out
     assert main(["bench", "--cases", "nope", "--quiet"]) == 2
+
+
+def test_bench_cases_and_solver_dataset(tmp_path):
+    from thrombojax.bench import bench
+    from thrombojax.io.hdf5 import Simulation, write_dataset
+
+    _, x, node_type = synthetic_cloud(200, seed=0)
+    sims = [Simulation(name=f"s{i}", positions=np.repeat(x[None], 3, 0),
+                       node_type=node_type.astype(np.int8), attrs={"solver_wall_time_s": 4.0 + i})
+            for i in range(2)]
+    data = write_dataset(tmp_path / "bend.h5", sims, name="bendvessel-like", source="test")
+    res = bench(("constant_velocity",), ("bendvessel", "clotentry"), n_nodes=64, max_steps=2,
+                repeats=1, dataset=str(data), solver_datasets=(str(data),), progress=False)
+    bend, clot = res["results"]
+    assert bend["solver_s"] == 4.5 and "solver_s" not in clot  # a BendVessel dataset
+    assert np.isclose(bend["speedup_vs_solver"], 4.5 / bend["full_length_s"])
+    assert bend["positions"].endswith(":s0") and clot["n_steps"] == 160

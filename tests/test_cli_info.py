@@ -24,7 +24,8 @@ def test_info_prints_summary(tmp_path, capsys):
     assert "clot fraction 0.385" in out
     assert "frames   5..7 per simulation, 18 in total" in out
     assert "bounding box (all simulations, all frames): [" in out
-    assert "reference wall time: 540.0 s total over 3 simulations" in out
+    assert "reference wall time (recorded): 540.0 s total over 3 simulations" in out
+    assert "solver wall time (measured): 4.5 s total over 3 simulations, mean 1.5 s" in out
 
 
 @pytest.mark.parametrize("case", sorted(BAD_FILES))

@@ -18,12 +18,15 @@ N = 50
 
 
 def _inputs(n_real, n_pad=0, seed=0):
-    rng = np.random.default_rng(seed)
-    n = n_real + n_pad
-    x = rng.uniform(-1, 1, (n, 3)).astype(np.float32)
-    xp = x - 0.05 * rng.normal(size=(n, 3)).astype(np.float32)
-    nt = np.where(rng.uniform(size=n) < 0.5, 1, 0).astype(np.int32)
-    mask = np.arange(n) < n_real
+    """``n_real`` nodes (the same for a given seed whatever ``n_pad``) then ``n_pad`` junk rows."""
+    rows = []
+    for n, rng in ((n_real, np.random.default_rng(seed)), (n_pad, np.random.default_rng(99))):
+        x = rng.uniform(-1, 1, (n, 3)).astype(np.float32)
+        xp = x - 0.05 * rng.normal(size=(n, 3)).astype(np.float32)
+        nt = np.where(rng.uniform(size=n) < 0.5, 1, 0).astype(np.int32)
+        rows.append((xp, x, nt))
+    xp, x, nt = (np.concatenate(a) for a in zip(*rows, strict=True))
+    mask = np.arange(n_real + n_pad) < n_real
     return make_input(jnp.asarray(xp), jnp.asarray(x), jnp.asarray(nt), jnp.asarray(mask))
 
 
@@ -47,8 +50,8 @@ def test_output_shape_finite_and_widths(setup):
     assert graph.tree.perm.shape == (64,) and len(graph.tree.rot_perm) == 2
     # widths double per level (hidden 8 -> 16 after one stride-2 pooling)
     net = params["params"]["net"]
-    assert net["enc_0"]["ErwinBlock_0"]["norm1"]["scale"].shape == (8,)
-    assert net["enc_1"]["ErwinBlock_0"]["norm1"]["scale"].shape == (16,)
+    assert net["enc_0"]["pairs"]["plain"]["norm1"]["scale"].shape == (1, 8)  # 1 pair of blocks
+    assert net["enc_1"]["pairs"]["rot"]["norm1"]["scale"].shape == (1, 16)
     assert count_params(params) > 0
 
 
@@ -62,7 +65,7 @@ def test_jit_gradients_finite(setup):
     g = grads(params)
     leaves = jax.tree_util.tree_leaves(g)
     assert all(bool(jnp.all(jnp.isfinite(leaf))) for leaf in leaves)
-    sigma = g["params"]["net"]["enc_0"]["ErwinBlock_1"]["attn"]["sigma"]
+    sigma = g["params"]["net"]["enc_0"]["pairs"]["rot"]["attn"]["sigma"]
     assert float(jnp.abs(sigma).sum()) > 0.0  # the distance fall-off is trained
     assert sum(float(jnp.abs(leaf).sum()) for leaf in leaves) > 0.0
 
@@ -115,3 +118,12 @@ def test_permuting_nodes_permutes_outputs(setup):
     graph_p = jax.jit(model.build_graph)(permuted)
     out = apply(params, inputs, graph)
     np.testing.assert_allclose(apply(params, permuted, graph_p), out[perm], atol=1e-5, rtol=1e-4)
+
+
+def test_inconsistent_config_raises():
+    from thrombojax.errors import ConfigError
+
+    bad = create_model("erwin", get_config("erwin", tiny=True, dec_depths=(2, 2)))
+    inputs = _inputs(N)
+    with pytest.raises(ConfigError, match="dec_heads"):
+        jax.eval_shape(lambda i: bad.init(jax.random.key(0), i, bad.build_graph(i)), inputs)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import pickle
 
 import h5py
 import numpy as np
@@ -22,13 +23,16 @@ def test_round_trip_arrays_and_attributes(tmp_path):
     }
     sims = [make_simulation(f"sim_{i}", seed=i, **extra) for i in (10, 2, 1)]
     path = write_dataset(tmp_path / "d.h5", sims, name="tiny", source="tests",
-                         generator_config={"preset": "bendvessel-tiny", "n": 3})
+                         generator_config={"preset": "bendvessel-tiny", "n": np.int64(3),
+                                           "r": np.array([0.5, 1.0])})
     ds = open_dataset(path)
     assert ds.names == ["sim_1", "sim_2", "sim_10"]  # natural order
     assert len(ds) == 3 and "sim_2" in ds and "sim_3" not in ds
     assert ds.attrs["format"] == FORMAT and ds.attrs["name"] == "tiny"
     assert ds.attrs["source"] == "tests" and ds.attrs["units"] == "vessel radius"
-    assert ds.attrs["generator_config"] == {"preset": "bendvessel-tiny", "n": 3}
+    assert ds.attrs["generator_config"] == {"preset": "bendvessel-tiny", "n": 3, "r": [0.5, 1.0]}
+    again = pickle.loads(pickle.dumps(ds))  # no open handle: safe for worker processes
+    np.testing.assert_array_equal(again.positions("sim_2"), ds.positions("sim_2"))
     for src in sims:
         got = ds[src.name]
         assert got.positions.dtype == np.float32 and got.node_type.dtype == np.int8

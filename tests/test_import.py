@@ -85,6 +85,9 @@ def test_many_series_into_one_file_and_cli(tmp_path, capsys):
     assert main(argv) == 2  # exists, no --force
     assert "already exists" in capsys.readouterr().err
     assert main([*argv, "--force"]) == 0
+    one_name = ["import", "vtu", *folders, "--out", str(tmp_path / "c.h5"), "--name", "n"]
+    assert main(one_name) == 2 and not (tmp_path / "c.h5").exists()
+    assert "1 names given for 3 simulations" in capsys.readouterr().err
 
 
 def write_inp(path, sim, *, clot_set="CLOT", wall_set="VESSEL_WALL", nset=None):
@@ -142,6 +145,25 @@ def test_abaqus_set_choices(tmp_path):
     out = import_abaqus([inp], [tmp_path / "f.npy", tmp_path / "f.npy"], tmp_path / "d.h5",
                         names=["s1", "s2"], progress=False)
     assert open_dataset(out).names == ["s1", "s2"]
+
+
+def test_abaqus_inp_written_by_meshio(tmp_path):
+    src = make_simulation("a", n_frames=3)
+    n_tet, n_tri = len(src.clot_cells), len(src.wall_cells)
+    mesh = meshio.Mesh(
+        src.positions[0].astype(np.float64),
+        [("tetra", src.clot_cells), ("triangle", src.wall_cells)],
+        cell_sets={"Clot-1": [np.arange(n_tet), np.array([], int)],
+                   "Vessel-Wall": [np.array([], int), np.arange(n_tri)]},
+    )
+    meshio.write(tmp_path / "m.inp", mesh, file_format="abaqus")
+    folder = tmp_path / "csv"
+    folder.mkdir()
+    for t, frame in enumerate(src.positions):  # labels 1..N as meshio writes them
+        rows = np.column_stack([np.arange(1, 14), frame])[::-1]
+        np.savetxt(folder / f"frame_{t}.csv", rows, delimiter=",", fmt="%.9g",
+                   header="label,x,y,z", comments="")
+    assert_same(read_abaqus(tmp_path / "m.inp", folder), src)
 
 
 def test_abaqus_cli(tmp_path, capsys):

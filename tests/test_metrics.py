@@ -70,3 +70,36 @@ def test_containment_in_bent_tube():
     assert fraction_outside(vw, traj, sel)[0] == 1.0
     sel = clot_mask_of(node_type)
     assert fraction_outside(vw, traj, sel)[0] == pytest.approx(5 / 9)
+
+
+def _tube_mesh(n_ring=12, n_len=10, radius=1.0, length=6.0):
+    """A straight open tube along x as a triangulated ring grid (coarse, like bendvessel-tiny)."""
+    phi = np.linspace(0, 2 * np.pi, n_ring, endpoint=False)
+    xs = np.linspace(0, length, n_len)
+    pts = np.array([[x, radius * np.cos(p), radius * np.sin(p)] for x in xs for p in phi])
+    tris = []
+    for i in range(n_len - 1):
+        for j in range(n_ring):
+            a, b = i * n_ring + j, i * n_ring + (j + 1) % n_ring
+            tris += [[a, b, a + n_ring], [b, b + n_ring, a + n_ring]]
+    return pts, np.asarray(tris)
+
+
+def test_containment_with_wall_mesh_and_open_ends():
+    wall, tris = _tube_mesh()
+    clot = np.array([[3.0, 0.2, 0.1],     # inside
+                     [3.0, 1.6, 0.0],     # through the wall
+                     [7.5, 1.3, 0.0],     # past the open outlet, expanded: not outside
+                     [-1.0, 0.0, -1.4]])  # past the inlet: not outside
+    positions = np.concatenate([clot, wall])
+    node_type = np.array([NodeType.CLOT] * 4 + [NodeType.VESSEL] * len(wall))
+    vw = fit_vessel_wall(positions, node_type, wall_cells=tris + 4)
+    rim = np.linalg.norm(vw.rim_dir, axis=1) > 0
+    assert rim.sum() == 24 and set(np.unique(vw.points[rim, 0])) == {0.0, 6.0}
+    np.testing.assert_allclose(vw.rim_dir[rim & (vw.points[:, 0] == 6.0)], [[1, 0, 0]] * 12,
+                               atol=1e-6)
+    out = [fraction_outside(vw, positions[None], np.arange(len(positions)) == i)[0]
+           for i in range(4)]
+    assert out == [0.0, 1.0, 0.0, 0.0]
+    with pytest.raises(DatasetError):
+        fit_vessel_wall(positions, node_type, wall_cells=tris)  # indices hit clot nodes

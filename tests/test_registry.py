@@ -134,3 +134,18 @@ def test_constant_velocity_integrates_to_x_plus_v():
 
 def test_count_params():
     assert count_params({"a": jnp.zeros((2, 3)), "b": [jnp.zeros(4)]}) == 10
+
+
+@pytest.mark.parametrize(
+    ("name", "bad"),
+    [
+        ("mgn", {"hidden": 0}),
+        ("mgn", {"radius": -1.0}),
+        ("transolver", {"heads": 3}),
+        ("transolver", {"dropout": 1.0}),
+        ("transolver", {"max_neighbors": 0}),
+    ],
+)
+def test_invalid_configs_rejected(name, bad):
+    with pytest.raises(ConfigError):
+        get_config(name, **bad)

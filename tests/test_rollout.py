@@ -130,3 +130,25 @@ def test_constant_velocity_baseline_and_overflow_flag():
         rollout(model, params, stats, x_prev, x_cur, node_type, mask, 2)
     with pytest.raises(ConfigError):
         rollout(model, params, stats, x_prev, x_cur, node_type, mask, 0)
+
+
+def test_registered_models_first_step_and_baseline():
+    from thrombojax.models.registry import create_model, get_config, identity_stats
+
+    x_prev, x_cur, node_type, mask, stats = _state(n=48)
+    cv = create_model("constant_velocity")
+    traj = rollout(cv, {}, identity_stats(), x_prev, x_cur, node_type, mask, 5)
+    np.testing.assert_allclose(np.asarray(traj),
+                               constant_velocity_rollout(x_prev, x_cur, node_type, mask, 5),
+                               atol=1e-6)
+    mgn = create_model("mgn", get_config("mgn", tiny=True))
+    from thrombojax.rollout import make_input
+
+    inputs = make_input(x_prev, x_cur, node_type, mask)
+    params = mgn.init(jax.random.key(0), inputs, mgn.build_graph(inputs))
+    traj = rollout(mgn, params, stats, x_prev, x_cur, node_type, mask, 3)
+    first, _ = predict_next(mgn, params, stats, x_prev, x_cur, node_type, mask)
+    np.testing.assert_allclose(np.asarray(traj[0]), np.asarray(first), rtol=0, atol=1e-5)
+    fixed = (node_type == NodeType.VESSEL) | ~mask
+    assert np.array_equal(np.asarray(traj)[:, fixed],
+                          np.broadcast_to(x_cur[fixed], (3, int(fixed.sum()), 3)))

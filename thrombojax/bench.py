@@ -281,13 +281,17 @@ def _unit_stats():
     return identity_stats()
 
 
+def _speedup(x: float) -> str:
+    return f"x{x:.0f}" if x >= 10 else f"x{x:.2g}"
+
+
 def bench_markdown(result: dict) -> str:
     """The benchmark as a markdown table with the environment beneath."""
     rows = [[r["model"], r["case"], r["n_nodes"], f"{r['n_steps']}"
              + (f" (timed {r['timed_steps']})" if r["extrapolated"] else ""),
              r["compile_s"], r["rollout_s"], 1e3 * r["per_step_s"], r["full_length_s"],
-             f"x{r['speedup_vs_abaqus']:.0f}",
-             f"x{r['speedup_vs_solver']:.0f}" if "speedup_vs_solver" in r else "n/a",
+             _speedup(r["speedup_vs_abaqus"]),
+             _speedup(r["speedup_vs_solver"]) if "speedup_vs_solver" in r else "n/a",
              r["weights"]] for r in result["results"]]
     env = result["environment"]
     table = markdown_table(["model", "case", "nodes", "steps", "compile s", "rollout s",

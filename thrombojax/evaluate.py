@@ -189,6 +189,7 @@ def rollout_simulation(
     n_steps: int | None = None,
     n_nodes: int | None = None,
     seed: int = 0,
+    wall_cells: np.ndarray | None = None,
 ) -> RolloutResult:
     """Roll a model out on one simulation and measure it (scaled coordinates throughout).
 
@@ -201,6 +202,8 @@ def rollout_simulation(
         n_steps: predicted frames (default: to the end, ``T - 1 - t0``).
         n_nodes: keep a fixed seeded subset of this many nodes (clot fraction kept), or all.
         seed: subset seed.
+        wall_cells: ``[F, 3]`` wall triangles of the full simulation, if it has them (better
+            wall normals and open-end detection for the containment test).
     Returns:
         The :class:`RolloutResult`.
     """
@@ -222,7 +225,7 @@ def rollout_simulation(
     true = positions[t0 + 1:t0 + 1 + n_steps][:, idx]
     base = constant_velocity_rollout(x_prev, x0, sub_type, mask, n_steps)
     clot = clot_mask_of(sub_type)
-    wall = fit_vessel_wall(positions[0], node_type)  # full-resolution wall, rigid
+    wall = fit_vessel_wall(positions[0], node_type, wall_cells=wall_cells)  # full res, rigid
     curves, summary = {}, {}
     label = getattr(model, "name", "model")
     for key, traj in ((label, pred), ("constant velocity", base), ("ground truth", true)):

@@ -17,8 +17,8 @@ nearest wall neighbours, oriented by a ray test: the inward side is the side who
 meets the opposite wall first) and call a clot node *outside* when its signed distance
 ``(p - w) . n_w``, averaged over its 3 nearest wall nodes, exceeds ``tol`` (default half
 the median wall-node spacing, so contact penetration at solver precision does not count).
-A clot that leaves through an open vessel end stays "inside" while it is within the tube's
-extension.
+A clot node past an open vessel end (its nearest wall node is on the rim, detected as a
+one-sided neighbourhood, and it lies beyond it) is not outside: the clot left through the outlet.
 """
 
 from __future__ import annotations
@@ -99,11 +99,14 @@ class VesselWall:
     Attributes:
         points: ``[n_wall, 3]`` wall node positions.
         normals: ``[n_wall, 3]`` outward unit normals.
+        rim_dir: ``[n_wall, 3]`` for nodes on an open end of the vessel (the rim), the unit
+            in-surface direction pointing out of the wall; zero elsewhere.
         spacing: median distance between neighbouring wall nodes (scalar).
     """
 
     points: np.ndarray
     normals: np.ndarray
+    rim_dir: np.ndarray
     spacing: float = struct.field(pytree_node=False)
 
 
@@ -124,38 +127,130 @@ def _orient_by_rays(points: np.ndarray, normals: np.ndarray, spacing: float) -> 
     return normals * sign[:, None]
 
 
-def fit_vessel_wall(positions: np.ndarray, node_type: np.ndarray, *, k: int = 12) -> VesselWall:
+def _orient(points: np.ndarray, normals: np.ndarray, spacing: float, max_rays: int,
+            seed: int = 0) -> np.ndarray:
+    """Ray-test orientation on at most ``max_rays`` wall nodes, copied to the others.
+
+    Large walls (ClotEntry: ~20,000 nodes) orient a random subset by rays (quadratic cost), and
+    every other node takes the sign that aligns its normal with its nearest oriented node.
+    """
+    n = points.shape[0]
+    if n <= max_rays:
+        return _orient_by_rays(points, normals, spacing)
+    sub = np.sort(np.random.default_rng(seed).choice(n, max_rays, replace=False))
+    sub_spacing = spacing * np.sqrt(n / max_rays)  # same surface, fewer points
+    oriented = _orient_by_rays(points[sub], normals[sub], sub_spacing)
+    _, near = cKDTree(points[sub]).query(points, k=1)
+    flip = np.einsum("nk,nk->n", normals, oriented[near]) < 0
+    return np.where(flip[:, None], -normals, normals)
+
+
+def _rim_directions(points: np.ndarray, normals: np.ndarray, nbrs: np.ndarray) -> np.ndarray:
+    """Boundary (open vessel end) detection by the angular-gap test of point-cloud boundaries.
+
+    The neighbours of a node, projected onto its tangent plane, surround it on the wall but
+    leave a gap of about 180 degrees on a rim. A node whose largest angular gap exceeds 135
+    degrees is a rim node; its direction is the bisector of that gap.
+
+    Returns:
+        ``[n, 3]`` unit in-plane direction out of the wall on rim nodes, zero elsewhere.
+    """
+    helper = np.where(np.abs(normals[:, :1]) < 0.9, [[1.0, 0, 0]], [[0, 1.0, 0]])
+    u = np.cross(normals, helper)
+    u /= np.linalg.norm(u, axis=1, keepdims=True)
+    v = np.cross(normals, u)
+    rel = points[nbrs] - points[:, None]  # [n, k, 3]
+    ang = np.sort(np.arctan2(np.einsum("nkj,nj->nk", rel, v), np.einsum("nkj,nj->nk", rel, u)))
+    gaps = np.diff(np.concatenate([ang, ang[:, :1] + 2 * np.pi], axis=1), axis=1)
+    widest = np.argmax(gaps, axis=1)
+    rows = np.arange(points.shape[0])
+    mid = ang[rows, widest] + 0.5 * gaps[rows, widest]
+    direction = np.cos(mid)[:, None] * u + np.sin(mid)[:, None] * v
+    return np.where((gaps[rows, widest] > 0.75 * np.pi)[:, None], direction, 0.0)
+
+
+def _mesh_normals_and_rim(pts: np.ndarray, tris: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Area-weighted vertex normals (unoriented) and rim directions from wall triangles."""
+    a, b, c = (pts[tris[:, i]] for i in range(3))
+    face = np.cross(b - a, c - a)  # length = 2 x area
+    normals = np.zeros_like(pts)
+    for i in range(3):
+        np.add.at(normals, tris[:, i], face)
+    # boundary edges: used by one triangle; direction away from the triangle's third vertex
+    edges = np.concatenate([tris[:, [0, 1]], tris[:, [1, 2]], tris[:, [2, 0]]])
+    third = np.concatenate([tris[:, 2], tris[:, 0], tris[:, 1]])
+    key = np.sort(edges, axis=1)
+    _, inverse, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
+    boundary = counts[inverse.ravel()] == 1
+    e, t = edges[boundary], third[boundary]
+    mid = 0.5 * (pts[e[:, 0]] + pts[e[:, 1]])
+    rim = np.zeros_like(pts)
+    for i in range(2):
+        np.add.at(rim, e[:, i], mid - pts[t])
+    return normals, rim
+
+
+def fit_vessel_wall(
+    positions: np.ndarray,
+    node_type: np.ndarray,
+    *,
+    wall_cells: np.ndarray | None = None,
+    k: int = 12,
+    max_rays: int = 3000,
+) -> VesselWall:
     """Estimate outward wall normals from one frame's vessel nodes (done once: rigid vessel).
 
     Args:
         positions: ``[n_nodes, 3]`` one frame.
         node_type: ``[n_nodes]`` NodeType values.
+        wall_cells: ``[F, 3]`` wall triangles (node indices of ``positions``) when the data has
+            them: normals and open ends then come from the mesh; else from the point cloud
+            (PCA normals, angular-gap rim test).
         k: neighbours of the PCA normal fit.
+        max_rays: wall nodes oriented by the ray test (the others copy their neighbour's).
     Returns:
         The :class:`VesselWall`.
     """
-    pts = np.asarray(positions, np.float64)[np.asarray(node_type) == NodeType.VESSEL]
+    vessel = np.asarray(node_type) == NodeType.VESSEL
+    pts = np.asarray(positions, np.float64)[vessel]
     if pts.shape[0] < 4:
         raise DatasetError(f"fit_vessel_wall: need >= 4 vessel nodes, got {pts.shape[0]}")
     k = min(k, pts.shape[0])
     dist, idx = cKDTree(pts).query(pts, k=k)
     spacing = float(np.median(dist[:, 1]))
+    if wall_cells is not None and len(wall_cells):
+        remap = np.full(vessel.size, -1, np.int64)
+        remap[vessel] = np.arange(pts.shape[0])
+        tris = remap[np.asarray(wall_cells)]
+        if (tris < 0).any():
+            raise DatasetError("fit_vessel_wall: wall_cells reference non-vessel nodes")
+        normals, rim = _mesh_normals_and_rim(pts, tris)
+        normals /= np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-12)
+        normals = _orient(pts, normals, spacing, max_rays)
+        rim -= np.einsum("nk,nk->n", rim, normals)[:, None] * normals
+        rim_dir = rim / np.maximum(np.linalg.norm(rim, axis=1, keepdims=True), 1e-12)
+        return VesselWall(points=pts, normals=normals, rim_dir=rim_dir, spacing=spacing)
     nbrs = pts[idx] - pts[idx].mean(axis=1, keepdims=True)  # [n, k, 3]
     _, vecs = np.linalg.eigh(np.einsum("nki,nkj->nij", nbrs, nbrs))
     normals = vecs[:, :, 0]  # eigenvector of the smallest eigenvalue
-    normals = _orient_by_rays(pts, normals, spacing)
-    return VesselWall(points=pts, normals=normals, spacing=spacing)
+    normals = _orient(pts, normals, spacing, max_rays)
+    rim_dir = _rim_directions(pts, normals, idx[:, 1:])
+    return VesselWall(points=pts, normals=normals, rim_dir=rim_dir, spacing=spacing)
 
 
-def signed_wall_distance(wall: VesselWall, points: np.ndarray, *, k: int = 3) -> np.ndarray:
+def signed_wall_distance(
+    wall: VesselWall, points: np.ndarray, *, k: int = 3, return_past_end: bool = False
+):
     """Signed distance of points to the wall, positive outside: mean of ``(p - w).n_w``.
 
     Args:
         wall: the fitted :class:`VesselWall`.
         points: ``[..., 3]`` query points.
         k: nearest wall nodes averaged.
+        return_past_end: also return whether each point lies past an open vessel end
+            (its nearest wall node is on the rim and it lies beyond it).
     Returns:
-        ``[...]`` float64.
+        ``[...]`` float64, and ``[...]`` bool when ``return_past_end``.
     """
     pts = np.asarray(points, np.float64)
     flat = pts.reshape(-1, 3)
@@ -163,7 +258,11 @@ def signed_wall_distance(wall: VesselWall, points: np.ndarray, *, k: int = 3) ->
     _, idx = cKDTree(wall.points).query(flat, k=k)
     idx = idx.reshape(flat.shape[0], k)
     s = np.einsum("nkj,nkj->nk", flat[:, None] - wall.points[idx], wall.normals[idx]).mean(1)
-    return s.reshape(pts.shape[:-1])
+    if not return_past_end:
+        return s.reshape(pts.shape[:-1])
+    near = idx[:, 0]
+    past = np.einsum("nj,nj->n", flat - wall.points[near], wall.rim_dir[near]) > 0
+    return s.reshape(pts.shape[:-1]), past.reshape(pts.shape[:-1])
 
 
 def fraction_outside(
@@ -173,7 +272,10 @@ def fraction_outside(
     *,
     tol: float | None = None,
 ) -> np.ndarray:
-    """Fraction of clot nodes outside the vessel, per frame.
+    """Fraction of clot nodes outside the vessel (through its wall), per frame.
+
+    Nodes past an open end of the vessel (a clot leaving through the outlet, free to expand)
+    do not count as outside.
 
     Args:
         wall: the fitted :class:`VesselWall` (same coordinates as ``trajectory``).
@@ -185,4 +287,5 @@ def fraction_outside(
     """
     tol = 0.5 * wall.spacing if tol is None else tol
     clot = np.asarray(trajectory)[:, np.asarray(clot_mask, bool)]
-    return (signed_wall_distance(wall, clot) > tol).mean(axis=1)
+    dist, past = signed_wall_distance(wall, clot, return_past_end=True)
+    return ((dist > tol) & ~past).mean(axis=1)

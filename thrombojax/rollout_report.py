@@ -151,11 +151,12 @@ def rollout_run(
     out_dir.mkdir(parents=True, exist_ok=True)
     report, rows = {}, []
     for name in names:
+        sim = ds[name]
         pos, node_type = scaled_simulation(ds, name, trained.scaling)
         res = rollout_simulation(trained.model, trained.params, trained.stats, pos, node_type,
                                  name=name, t0=max(skip, 1), n_steps=n_steps, n_nodes=n_nodes,
-                                 seed=seed)
-        files = save_rollout(res, ds[name], trained.scaling, out_dir,
+                                 seed=seed, wall_cells=sim.wall_cells)
+        files = save_rollout(res, sim, trained.scaling, out_dir,
                              model_name=trained.model.name, format=format, gif=gif)
         report[name] = {"t0": res.t0, "n_steps": int(res.pred.shape[0]),
                         "n_nodes": int(res.node_index.size), "summary": res.summary,

@@ -207,11 +207,20 @@ def make_batch(
     return Batch(frames=frames, node_type=node_type, mask=mask, generated=entries[:, 1] > 0)
 
 
-def compute_target_stats(store: WindowStore, *, min_std: float = 1e-8) -> TargetStats:
-    """Mean and standard deviation per axis of ``a_t = s_{t+1} - 2 s_t + s_{t-1}`` on clot nodes.
+def compute_target_stats(
+    store: WindowStore, *, isotropic: bool = False, min_std: float = 1e-8
+) -> TargetStats:
+    """Statistics of ``a_t = s_{t+1} - 2 s_t + s_{t-1}`` over the clot nodes of every window.
 
-    Computed over every window of the store (the training split, all nodes, no augmentation),
-    in float64. A standard deviation below ``min_std`` is raised to it.
+    Computed over the store (the training split, all nodes, no augmentation) in float64.
+
+    * ``isotropic=False``: per-axis mean and standard deviation.
+    * ``isotropic=True`` (training with random rotations): rotation-invariant statistics, mean 0
+      and one RMS ``sqrt(E|a|^2 / 3)`` for all axes. Per-axis statistics would be wrong for
+      rotated samples: a clot moving in a plane has a near-zero standard deviation along the
+      plane's normal, and a rotated sample's acceleration along that axis would be blown up.
+
+    A standard deviation below ``min_std`` is raised to it.
 
     Returns:
         :class:`TargetStats` with ``mean [3]``, ``std [3]``.
@@ -233,5 +242,8 @@ def compute_target_stats(store: WindowStore, *, min_std: float = 1e-8) -> Target
         raise DatasetError(f"simulations {list(store.names)}: field 'node_type': no clot nodes")
     mean = total / count
     std = np.sqrt(np.maximum(total_sq / count - mean**2, 0.0))
+    if isotropic:
+        mean = np.zeros(3)
+        std = np.full(3, np.sqrt(total_sq.sum() / count / 3.0))
     std = np.maximum(std, min_std)
     return TargetStats(mean=jnp.asarray(mean, jnp.float32), std=jnp.asarray(std, jnp.float32))

@@ -11,29 +11,37 @@ from thrombojax.graph.balltree import (
     rotated_partitions,
     rotation_matrix,
 )
+from thrombojax.graph.grid import GridSpec, estimate_capacity, grow
 from thrombojax.graph.neighbors import (
     AUTO_GRID_MIN_NODES,
-    GridSpec,
     NeighborList,
+    allocate,
     edge_displacements,
     edge_mask,
     radius_graph,
+    radius_graph_checked,
     senders_receivers,
     to_graphs_tuple,
 )
+from thrombojax.graph.triangles import find_triangles
 
 __all__ = [
     "AUTO_GRID_MIN_NODES",
     "BallTree",
     "GridSpec",
     "NeighborList",
+    "allocate",
     "build_balltree",
     "build_balltree_numpy",
     "default_num_slots",
     "edge_displacements",
     "edge_mask",
+    "estimate_capacity",
+    "find_triangles",
+    "grow",
     "level_sizes",
     "radius_graph",
+    "radius_graph_checked",
     "rotated_partitions",
     "rotation_matrix",
     "senders_receivers",

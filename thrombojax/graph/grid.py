@@ -40,7 +40,8 @@ class GridSpec:
     ``cell_size < r`` (k-nearest mode, for large radii) only nodes within ``cell_size`` are
     guaranteed to be examined: the K nearest are still exact iff the K-th nearest neighbour of
     each real node lies within ``cell_size``; otherwise ``overflow`` is raised. In this mode
-    ``counts`` is a lower bound that is ``>= K`` exactly when the cap is hit.
+    ``counts`` is the number of neighbours within ``cell_size``: a lower bound of the count
+    within ``r``, ``>= K`` (cap hit) whenever there is no overflow.
 
     Attributes:
         cell_size: side of a cell (units of the positions).
@@ -107,30 +108,44 @@ def grid_search(positions, r, k, mask, loop, spec: GridSpec):
     t = max(1, min(n, _TILE_ELEMENTS // width))
     n_tiles = -(-n // t)
     pad = n_tiles * t - n
-    off = jnp.arange(width, dtype=jnp.int32)
+    run = jnp.arange(width, dtype=jnp.int32) // cap
+    off = jnp.arange(width, dtype=jnp.int32) % cap
+    # everything below works on nodes sorted by cell: candidates are contiguous windows
+    table = jnp.pad(positions[order], ((0, cap), (0, 0)))
+
+    def windows(starts):  # [9] -> [9, cap, 3]
+        return jax.vmap(lambda s0: jax.lax.dynamic_slice(table, (s0, 0), (cap, 3)))(starts)
 
     def tile(args):
-        q, s, e = args  # q [T] query node ids (in cell order), s / e [T, 9] run bounds
-        slot = s[:, off // cap] + off % cap
-        valid = slot < e[:, off // cap]
-        cand = order[jnp.minimum(slot, n - 1)]
-        diff = positions[q][:, None, :] - positions[cand]
+        qpos, xq, real, s, e = args  # sorted positions [T], coords [T, 3], [T], runs [T, 9]
+        xc = jax.vmap(windows)(s).reshape(-1, width, 3)
+        diff = xq[:, None, :] - xc
         d2 = jnp.sum(diff * diff, axis=-1)
-        okc = valid & mask[q][:, None] & (d2 < r2)
+        cand = s[:, run] + off[None, :]
+        okc = (cand < e[:, run]) & real[:, None] & (d2 < r2)
+        if knn_mode:  # beyond the cell size a node cannot be among the K nearest (else: miss)
+            okc = okc & (d2 <= h2)
         if not loop:
-            okc = okc & (cand != q[:, None])
-        d2 = jnp.where(okc, d2, jnp.inf)
-        neg, pos = jax.lax.top_k(-d2, kk)
-        ids = jnp.where(jnp.isfinite(neg), jnp.take_along_axis(cand, pos, 1), n)
-        miss = jnp.zeros(q.shape, bool)
+            okc = okc & (cand != qpos[:, None])
+        neg, pos = jax.lax.top_k(jnp.where(okc, -d2, -jnp.inf), kk)
+        found = jnp.isfinite(neg)
+        ids = jnp.where(found, order[jnp.take_along_axis(cand, pos, 1) % n], n)
+        miss = jnp.zeros(qpos.shape, bool)
         if knn_mode:  # exact only if the k-th neighbour lies within the cell size
-            miss = mask[q] & ((kk < k) | (-neg[:, kk - 1] > h2))
+            miss = real & ((kk < k) | ~found[:, kk - 1])
         return ids.astype(jnp.int32), jnp.sum(okc, 1, dtype=jnp.int32), miss
 
-    q_all = jnp.pad(order, (0, pad), constant_values=n - 1)
-    s_all = jnp.pad(start[order], ((0, pad), (0, 0)))
-    e_all = jnp.pad(end[order], ((0, pad), (0, 0)))
-    xs = (q_all.reshape(n_tiles, t), s_all.reshape(n_tiles, t, 9), e_all.reshape(n_tiles, t, 9))
+    def tiled(a, fill=0):
+        a = jnp.pad(a, ((0, pad),) + ((0, 0),) * (a.ndim - 1), constant_values=fill)
+        return a.reshape((n_tiles, t) + a.shape[1:])
+
+    xs = (
+        tiled(jnp.arange(n, dtype=jnp.int32)),
+        tiled(table[:n]),
+        tiled(mask[order], False),
+        tiled(start[order]),
+        tiled(end[order]),
+    )
     ids, counts, miss = jax.lax.map(tile, xs)
     ids = ids.reshape(-1, kk)[:n]
     if kk < k:

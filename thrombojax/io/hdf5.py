@@ -41,6 +41,7 @@ from thrombojax.io.schema import (
     encode_attrs,
     natural_key,
     simulation_error,
+    to_json,
     validate_simulation,
 )
 from thrombojax.types import NodeType
@@ -96,8 +97,11 @@ class DatasetWriter:
             "name": str(name),
             "source": str(source),
             "units": str(units),
-            "generator_config": json.dumps(generator_config),
         }
+        try:
+            self._file_attrs["generator_config"] = to_json(generator_config)
+        except (TypeError, ValueError) as err:
+            raise simulation_error(self.path, None, "generator_config", str(err)) from err
         self._overwrite = overwrite
         self._vessel_tol = vessel_tol
         self._tmp: Path | None = None
@@ -144,7 +148,7 @@ class DatasetWriter:
                 group.create_dataset(field, data=cells.astype(np.int32))
         try:
             encode_attrs(group.attrs, sim.attrs)
-        except (TypeError, ValueError) as err:
+        except (TypeError, ValueError, OSError, RuntimeError) as err:
             raise simulation_error(self.path, sim.name, "attrs", f"cannot store: {err}") from err
         self._h5.flush()
         self.names.append(sim.name)
@@ -161,6 +165,8 @@ class DatasetWriter:
             if not self.names:
                 raise DatasetError(f"{self.path}: no simulations were added; nothing written")
             self._check_target()
+            with open(tmp, "rb+") as f:  # on disk before the rename makes it visible
+                os.fsync(f.fileno())
             os.replace(tmp, self.path)
         finally:
             tmp.unlink(missing_ok=True)
@@ -182,14 +188,8 @@ def write_dataset(
     Returns:
         The path written. Arguments as for :class:`DatasetWriter`.
     """
-    writer = DatasetWriter(
-        path,
-        name=name,
-        source=source,
-        units=units,
-        generator_config=generator_config,
-        overwrite=overwrite,
-    )
+    writer = DatasetWriter(path, name=name, source=source, units=units,
+                           generator_config=generator_config, overwrite=overwrite)
     with writer:
         for sim in tqdm(simulations, desc="writing", unit="sim", disable=not progress):
             writer.add(sim)

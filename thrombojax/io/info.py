@@ -25,6 +25,13 @@ def _span(values: list[int]) -> str:
     return str(values[0]) if min(values) == max(values) else f"{min(values)}..{max(values)}"
 
 
+def _times(label: str, known: list) -> str:
+    if not known:
+        return f"{label}: n/a (not recorded)"
+    return (f"{label}: {float(sum(known)):.1f} s total over {len(known)} simulations, "
+            f"mean {float(np.mean(known)):.1f} s")
+
+
 def _box(lo: np.ndarray, hi: np.ndarray) -> str:
     return " x ".join(f"[{a:.4g}, {b:.4g}]" for a, b in zip(lo, hi, strict=True))
 
@@ -83,11 +90,7 @@ def describe_dataset(path: str | os.PathLike, *, progress: bool = False) -> str:
         f"nodes    {_span(nodes)} per simulation; clot fraction "
         f"{clot_total / sum(nodes):.3f} over all simulations",
         f"bounding box (all simulations, all frames): {_box(lo_all, hi_all)}",
-        f"solver wall time: {_num(float(sum(solver_known)), '{:.1f}')} s total over "
-        f"{len(solver_known)} simulations"
-        + (f", mean {np.mean(solver_known):.1f} s" if solver_known else ""),
-        f"reference wall time: {_num(float(sum(ref_known)), '{:.1f}')} s total over "
-        f"{len(ref_known)} simulations"
-        + (f", mean {np.mean(ref_known):.1f} s" if ref_known else ""),
+        _times("solver wall time (measured)", solver_known),
+        _times("reference wall time (recorded)", ref_known),
     ]
     return "\n".join(lines)

@@ -47,17 +47,9 @@ from thrombojax.io.schema import Simulation, simulation_error, validate_simulati
 from thrombojax.types import NodeType
 
 __all__ = [
-    "MESH_SUFFIXES",
-    "DEFAULT_NODE_TYPE_ARRAY",
-    "DEFAULT_CLOT_KEYWORDS",
-    "DEFAULT_VESSEL_KEYWORDS",
-    "list_frame_files",
-    "node_type_from_cells",
-    "read_mesh_series",
-    "read_frames",
-    "read_abaqus",
-    "import_mesh_series",
-    "import_abaqus",
+    "MESH_SUFFIXES", "DEFAULT_NODE_TYPE_ARRAY", "DEFAULT_CLOT_KEYWORDS", "DEFAULT_VESSEL_KEYWORDS",
+    "list_frame_files", "node_type_from_cells", "read_mesh_series", "read_frames", "read_abaqus",
+    "import_mesh_series", "import_abaqus",
 ]
 
 MESH_SUFFIXES = (".vtu", ".vtk", ".xdmf", ".xmf")
@@ -226,18 +218,27 @@ def _abaqus_labels(inp: Path, name: str) -> np.ndarray | None:
                 blocks += in_nodes
                 include |= keyword == "INCLUDE"
             elif in_nodes and line.strip():
-                labels.append(int(line.split(",")[0]))
+                try:
+                    labels.append(int(line.split(",")[0]))
+                except ValueError as err:
+                    msg = f"bad *Node line {line.strip()!r}"
+                    raise simulation_error(inp, name, "mesh", msg) from err
     if blocks > 1:
         raise simulation_error(inp, name, "mesh", f"{blocks} *Node blocks (parts/instances); "
                                "write the input file without parts and assembly")
     return None if include else np.asarray(labels, np.int64)
 
 
-def _set_nodes(mesh: meshio.Mesh, key: str) -> np.ndarray:
+def _set_nodes(mesh: meshio.Mesh, key: str, path: Path, name: str) -> np.ndarray:
+    """Node indices of a node set, or of the elements of an element set."""
     if key in mesh.point_sets:
         return np.asarray(mesh.point_sets[key], np.int64)
-    parts = [mesh.cells[i].data[np.asarray(idx, np.int64)].ravel()
-             for i, idx in enumerate(mesh.cell_sets[key]) if len(idx)]
+    try:
+        parts = [mesh.cells[i].data[np.asarray(idx, np.int64)].ravel()
+                 for i, idx in enumerate(mesh.cell_sets[key]) if len(idx)]
+    except IndexError as err:
+        raise simulation_error(path, name, "mesh", f"element set {key!r} does not match the "
+                               "element blocks (define it with *Elset)") from err
     return np.unique(np.concatenate(parts)) if parts else np.zeros(0, np.int64)
 
 
@@ -285,10 +286,10 @@ def read_abaqus(
     if clot_keys:
         clot = np.zeros(n_nodes, bool)
         for key in clot_keys:
-            clot[_set_nodes(mesh, key)] = True
+            clot[_set_nodes(mesh, key, inp, name)] = True
         vessel = np.zeros(n_nodes, bool) if vessel_keys else ~clot
         for key in vessel_keys:
-            vessel[_set_nodes(mesh, key)] = True
+            vessel[_set_nodes(mesh, key, inp, name)] = True
         if (clot & vessel).any():
             raise simulation_error(inp, name, "node_type", f"node {int(np.argmax(clot & vessel))} "
                                    f"is in clot sets {clot_keys} and vessel sets {vessel_keys}")

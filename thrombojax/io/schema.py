@@ -18,6 +18,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+import os
 import re
 from collections.abc import Mapping
 from typing import Any
@@ -33,6 +34,7 @@ __all__ = [
     "simulation_error",
     "encode_attrs",
     "decode_attrs",
+    "to_json",
     "natural_key",
     "bounding_box",
     "VESSEL_TOLERANCE",
@@ -48,7 +50,7 @@ _TIME_ATTRS = ("solver_wall_time_s", "reference_wall_time_s")
 _JSON_KEY = "_json_attrs"
 
 
-@dataclasses.dataclass(frozen=True)
+@dataclasses.dataclass(frozen=True, eq=False)  # arrays: compare fields explicitly
 class Simulation:
     """One simulated trajectory, in physical units.
 
@@ -231,6 +233,21 @@ def _check_attrs(attrs: Any, fail) -> None:
                 raise fail(f"attrs/{key}", f"must be a finite number {bound}, got {value!r}")
 
 
+def to_json(value: Any) -> str:
+    """JSON text of ``value``; numpy scalars / arrays, dataclasses and paths are converted."""
+
+    def default(obj: Any) -> Any:
+        if isinstance(obj, np.generic | np.ndarray):
+            return obj.tolist()
+        if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
+            return dataclasses.asdict(obj)
+        if isinstance(obj, os.PathLike):
+            return os.fspath(obj)
+        raise TypeError(f"{type(obj).__name__} is not JSON serialisable")
+
+    return json.dumps(value, default=default)
+
+
 def encode_attrs(target: Any, attrs: Mapping[str, Any]) -> None:
     """Store str/bool/number/numeric-array attributes natively in an HDF5 attribute manager,
     everything else as JSON (names listed in ``_json_attrs``)."""
@@ -241,7 +258,7 @@ def encode_attrs(target: Any, attrs: Mapping[str, Any]) -> None:
         ):
             target[key] = value
         else:
-            target[key] = json.dumps(value)
+            target[key] = to_json(value)
             json_keys.append(key)
     if json_keys:
         target[_JSON_KEY] = json.dumps(json_keys)

@@ -178,8 +178,32 @@ class ErwinBlock(nn.Module):
         return x + SwiGLU(self.dim * self.mlp_ratio, name="mlp")(RMSNorm(name="norm2")(x))
 
 
+class _BlockPair(nn.Module):
+    """Blocks ``2k`` (tree order) and ``2k + 1`` (rotated tree order when ``rotate``)."""
+
+    dim: int
+    num_heads: int
+    ball_size: int
+    mlp_ratio: int
+    rotate: bool
+
+    @nn.compact
+    def __call__(self, x, pos, valid, rot, inv):
+        x = ErwinBlock(self.dim, self.num_heads, self.ball_size, self.mlp_ratio, name="plain")(
+            x, pos, valid
+        )
+        second = ErwinBlock(self.dim, self.num_heads, self.ball_size, self.mlp_ratio, name="rot")
+        if self.rotate:
+            return second(x[rot], pos[rot], valid[rot])[inv], None
+        return second(x, pos, valid), None
+
+
 class _Stage(nn.Module):
-    """``depth`` blocks at one tree level; odd blocks run in the rotated tree's order."""
+    """``depth`` blocks at one tree level; odd blocks run in the rotated tree's order.
+
+    Pairs of blocks are an ``nn.scan`` (parameters stacked on a leading axis of length
+    ``depth // 2``), so compile time does not grow with depth; an odd last block follows.
+    """
 
     dim: int
     depth: int
@@ -191,12 +215,19 @@ class _Stage(nn.Module):
     @nn.compact
     def __call__(self, x, pos, valid, rot, inv):
         """``x [M, C]``, ``pos [M, 3]``, ``valid [M]``; ``rot``/``inv`` ``[M]`` rotated order."""
-        for i in range(self.depth):
-            blk = ErwinBlock(self.dim, self.num_heads, self.ball_size, self.mlp_ratio)
-            if self.rotate and i % 2 == 1:
-                x = blk(x[rot], pos[rot], valid[rot])[inv]
-            else:
-                x = blk(x, pos, valid)
+        if self.depth // 2:
+            pairs = nn.scan(
+                _BlockPair, variable_axes={"params": 0}, split_rngs={"params": True},
+                in_axes=nn.broadcast, length=self.depth // 2,
+            )
+            x, _ = pairs(
+                self.dim, self.num_heads, self.ball_size, self.mlp_ratio, self.rotate,
+                name="pairs",
+            )(x, pos, valid, rot, inv)
+        if self.depth % 2:
+            x = ErwinBlock(self.dim, self.num_heads, self.ball_size, self.mlp_ratio, name="last")(
+                x, pos, valid
+            )
         return x
 
 
@@ -238,13 +269,14 @@ class ErwinNet(nn.Module):
     """The Erwin U-Net on one point cloud (no batch axis).
 
     Attributes:
-        hidden: width of level 0; level ``l`` has ``hidden * prod(strides[:l])``.
+        hidden: width of level 0; level ``l`` has ``hidden * prod(strides[:l])`` if ``widen``.
         enc_heads, enc_depths: per level, encoder levels then the bottleneck (length L).
         dec_heads, dec_depths: per decoder level ``0..L-2`` (length L - 1, finest first).
         strides: pooling strides between levels (length L - 1).
         ball_sizes: leaves per ball at each level (length L; clipped to the level size).
         mlp_ratio: SwiGLU hidden width / block width.
         rotate: use the rotated tree in every other block.
+        widen: multiply the width by the stride at each coarsening (else constant ``hidden``).
         mp_steps: message-passing steps of the embedding.
         out_dim: output channels (3: normalised acceleration).
     """
@@ -258,6 +290,7 @@ class ErwinNet(nn.Module):
     ball_sizes: tuple[int, ...]
     mlp_ratio: int = 4
     rotate: bool = True
+    widen: bool = True
     mp_steps: int = 3
     out_dim: int = 3
 
@@ -275,7 +308,15 @@ class ErwinNet(nn.Module):
             ``[n, out_dim]``; padded rows (outside the tree) hold arbitrary finite values.
         """
         n_levels = len(self.enc_depths)
-        dims = [self.hidden * math.prod(self.strides[:i]) for i in range(n_levels)]
+        lengths = {len(self.enc_heads), len(self.ball_sizes), len(self.strides) + 1,
+                   len(self.dec_heads) + 1, len(self.dec_depths) + 1}
+        if lengths != {n_levels}:
+            raise ConfigError(
+                f"erwin: enc_heads/enc_depths/ball_sizes need {n_levels} entries and "
+                f"dec_heads/dec_depths/strides {n_levels - 1}"
+            )
+        dims = [self.hidden * (math.prod(self.strides[:i]) if self.widen else 1)
+                for i in range(n_levels)]
         tree = graph.tree
         sizes = level_sizes(tree.perm.shape[0], tuple(self.strides))
         balls = [min(b, s) for b, s in zip(self.ball_sizes, sizes, strict=True)]
@@ -343,7 +384,7 @@ class Erwin(nn.Module):
             hidden=c.hidden, enc_heads=tuple(c.enc_heads), enc_depths=tuple(c.enc_depths),
             dec_heads=tuple(c.dec_heads), dec_depths=tuple(c.dec_depths),
             strides=tuple(c.strides), ball_sizes=tuple(c.ball_sizes), mlp_ratio=c.mlp_ratio,
-            rotate=c.rotate > 0, mp_steps=c.mp_steps, name="net",
+            rotate=c.rotate > 0, widen=c.widen, mp_steps=c.mp_steps, name="net",
         )
         return net(feats, inputs.positions, graph)
 

@@ -61,6 +61,14 @@ __all__ = [
 # ---- configs ------------------------------------------------------------------------------
 
 
+def _check_positive(config: Any, *names: str) -> None:
+    """Raise :class:`ConfigError` unless every named field of ``config`` is > 0."""
+    for name in names:
+        value = getattr(config, name)
+        if not value > 0:
+            raise ConfigError(f"{type(config).__name__}.{name} must be > 0, got {value!r}")
+
+
 @dataclasses.dataclass(frozen=True)
 class MeshGraphNetConfig:
     """MeshGraphNet (Pfaff et al. 2021, PhysicsNeMo's variant). Study: hidden 64, 15 blocks.
@@ -81,6 +89,9 @@ class MeshGraphNetConfig:
     max_neighbors: int = 32
     batch_size: int = 8
     learning_rate: float = 1e-3
+
+    def __post_init__(self) -> None:
+        _check_positive(self, "hidden", "processor_size", "mlp_layers", "radius", "max_neighbors")
 
     @classmethod
     def tiny(cls) -> MeshGraphNetConfig:
@@ -119,6 +130,14 @@ class TransolverConfig:
     batch_size: int = 16
     learning_rate: float = 1e-4
 
+    def __post_init__(self) -> None:
+        _check_positive(self, "hidden", "heads", "layers", "slices", "mlp_ratio", "radius",
+                        "max_neighbors")
+        if self.hidden % self.heads:
+            raise ConfigError(f"transolver: hidden {self.hidden} % heads {self.heads} != 0")
+        if not 0.0 <= self.dropout < 1.0:
+            raise ConfigError(f"transolver: dropout must be in [0, 1), got {self.dropout}")
+
     @classmethod
     def tiny(cls) -> TransolverConfig:
         """A small config for tests (dropout kept non-zero so the train path is exercised)."""
@@ -141,6 +160,9 @@ class ErwinConfig:
         ball_sizes: leaves per attention ball per level.
         mlp_ratio: SwiGLU width factor.
         rotate: angle (degrees) of the rotated tree used every other block (0: off).
+        widen: widths grow with coarsening, ``hidden * prod(strides[:l])`` at level ``l``
+            (32, 64, 128, 256: the official README and pre-May-2025 int ``c_hidden``);
+            False keeps ``hidden`` at every level (the thesis prints one hidden size).
         mp_steps: message-passing steps of the MPNN embedding.
         radius, max_neighbors: radius graph of the MPNN embedding (self loops included).
         batch_size, learning_rate: the study's training settings.
@@ -155,6 +177,7 @@ class ErwinConfig:
     ball_sizes: tuple[int, ...] = (128, 128, 128, 128)
     mlp_ratio: int = 4
     rotate: float = 45.0
+    widen: bool = True
     mp_steps: int = 3
     radius: float = 0.766
     max_neighbors: int = 32

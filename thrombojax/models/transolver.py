@@ -43,7 +43,6 @@ import flax.linen as nn
 import jax
 import jax.numpy as jnp
 
-from thrombojax.errors import ConfigError
 from thrombojax.graph.neighbors import NeighborList
 from thrombojax.models.layers import MLP, MPNNEmbedding, gelu, layer_norm
 from thrombojax.models.registry import FlaxSurrogate, TransolverConfig
@@ -149,8 +148,6 @@ class Transolver(nn.Module):
             ``[n_nodes, 3]``.
         """
         cfg = self.config
-        if cfg.hidden % cfg.heads:
-            raise ConfigError(f"transolver: hidden {cfg.hidden} not divisible by heads {cfg.heads}")
         feats = jnp.concatenate([inputs.velocity, node_type_one_hot(inputs.node_type)], axis=-1)
         positions = jax.lax.stop_gradient(inputs.positions)
         emb = MPNNEmbedding(cfg.hidden, cfg.mp_steps, name="embedding")(

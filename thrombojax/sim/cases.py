@@ -56,15 +56,20 @@ class Case:
 def build_vessel(preset: Preset, index: int, seed: int) -> tuple[geo.Centreline, dict]:
     """The (unrotated) vessel centreline of simulation ``index`` and its geometry attributes."""
     if preset.kind == "bend":
-        pts = geo.bent_tube_points(preset.leg_in, preset.leg_out, preset.bend_radius,
-                                   preset.bend_angle_deg, preset.spacing)
+        pts = geo.bent_tube_points(
+            preset.leg_in, preset.leg_out, preset.bend_radius, preset.bend_angle_deg, preset.spacing
+        )
         cl = geo.make_centreline(pts, np.full(len(pts), preset.radius))
-        return cl, {"vessel": "bent tube", "leg_in": preset.leg_in, "leg_out": preset.leg_out,
-                    "bend_radius": preset.bend_radius, "bend_angle_deg": preset.bend_angle_deg}
+        return cl, {
+            "vessel": "bent tube",
+            "leg_in": preset.leg_in,
+            "leg_out": preset.leg_out,
+            "bend_radius": preset.bend_radius,
+            "bend_angle_deg": preset.bend_angle_deg,
+        }
     rng = np.random.default_rng([seed, index, 1])
     clearance = 2.0 * max(preset.radius, preset.radius_end) * (1 + preset.wobble) + 0.5
-    pts = geo.tortuous_points(rng, preset.length, preset.min_bend_radius, preset.spacing,
-                              clearance)
+    pts = geo.tortuous_points(rng, preset.length, preset.min_bend_radius, preset.spacing, clearance)
     arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(pts, axis=0), axis=1))])
     radius = geo.radius_profile(arc, preset.radius, preset.radius_end, preset.wobble, rng)
     return geo.make_centreline(pts, radius), {
@@ -102,10 +107,12 @@ def build_case(preset: Preset, index: int, seed: int) -> Case:
     os_ = drawn["oversize"]
     rest_radius = os_ * r_ref
     stretch = (os_ / preset.squeeze) ** 2  # isochoric placement: radial squeeze, axial stretch
-    rest, tets = clotmesh.cylinder_mesh(preset.clot_cross, preset.clot_cells, rest_radius,
-                                        preset.clot_length / stretch)
-    x0 = clotmesh.place_clot(rest, cl, s_back, rest_radius, preset.clot_length,
-                             drawn["roll_deg"], preset.squeeze)
+    rest, tets = clotmesh.cylinder_mesh(
+        preset.clot_cross, preset.clot_cells, rest_radius, preset.clot_length / stretch
+    )
+    x0 = clotmesh.place_clot(
+        rest, cl, s_back, rest_radius, preset.clot_length, drawn["roll_deg"], preset.squeeze
+    )
     mu, kappa = lame(drawn["young"], drawn["poisson"])
     pressure = mu * (os_**4 - os_**-2)
     k_contact = max(pressure, preset.min_contact_pressure * drawn["young"]) / (
@@ -123,9 +130,10 @@ def build_case(preset: Preset, index: int, seed: int) -> Case:
         mu=f(mu), kappa=f(kappa), k_contact=f(k_contact),
         zeta=f(preset.contact_damping), friction=f(drawn["friction"]), drive=f(drive),
         ramp_time=f(preset.ramp_time), alpha=f(alpha), dt=f(0.0),
-        exit_margin=f(preset.exit_margin),
+        exit_margin=f(preset.exit_margin), pen_cap=f(preset.penetration_cap),
     )  # fmt: skip
-    params = params.replace(dt=stable_dt(params, jnp.asarray(tets), safety=preset.safety))
+    dt = stable_dt(params, jnp.asarray(tets), safety=preset.safety, beta=preset.beta)
+    params = params.replace(dt=dt)
     wall_pts, wall_cells = geo.wall_mesh(cl, preset.wall_rings, preset.wall_around)
     rotation_deg = float(index * preset.rotation_step_deg) if preset.kind == "bend" else 0.0
     attrs = {

@@ -58,8 +58,9 @@ def cylinder_mesh(
         every tet positively oriented.
     """
     if n_cross < 2 or n_cross % 2 or n_len < 1:
-        raise ConfigError(f"clot mesh needs an even n_cross >= 2 and n_len >= 1, got "
-                          f"{n_cross}, {n_len}")
+        raise ConfigError(
+            f"clot mesh needs an even n_cross >= 2 and n_len >= 1, got {n_cross}, {n_len}"
+        )
     n = n_cross
     g = np.linspace(-1.0, 1.0, n + 1)
     uu, vv, zz = np.meshgrid(g, g, np.linspace(0.0, length, n_len + 1), indexing="ij")
@@ -68,8 +69,9 @@ def cylinder_mesh(
     idx = np.arange(nodes.shape[0]).reshape(n + 1, n + 1, n_len + 1)
     square = np.stack([uu.ravel(), vv.ravel(), zz.ravel()], 1)
 
-    i, j, k = (a.ravel() for a in np.meshgrid(np.arange(n), np.arange(n), np.arange(n_len),
-                                               indexing="ij"))
+    i, j, k = (
+        a.ravel() for a in np.meshgrid(np.arange(n), np.arange(n), np.arange(n_len), indexing="ij")
+    )
     flip_i = i < n // 2
     flip_j = j < n // 2
     tets = []
@@ -114,8 +116,9 @@ def tet_min_heights(x: np.ndarray, tets: np.ndarray) -> np.ndarray:
 
 def surface_triangles(tets: np.ndarray) -> np.ndarray:
     """Boundary faces ``[B, 3]`` of a tet mesh (faces that belong to exactly one tet)."""
-    faces = np.concatenate([tets[:, [1, 2, 3]], tets[:, [0, 3, 2]], tets[:, [0, 1, 3]],
-                            tets[:, [0, 2, 1]]])
+    faces = np.concatenate(
+        [tets[:, [1, 2, 3]], tets[:, [0, 3, 2]], tets[:, [0, 1, 3]], tets[:, [0, 2, 1]]]
+    )
     key = np.sort(faces, axis=1)
     _, inv, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
     return faces[counts[inv.ravel()] == 1]
@@ -168,8 +171,9 @@ def place_clot(
     arc, pts = np.asarray(cl.arc), np.asarray(cl.points)
     s = s_back + rest[:, 2] * length_in_vessel / rest[:, 2].max()
     if s.min() < 0 or s.max() > arc[-1]:
-        raise ConfigError(f"clot [{s.min():.2f}, {s.max():.2f}] does not fit in the vessel "
-                          f"[0, {arc[-1]:.2f}]")
+        raise ConfigError(
+            f"clot [{s.min():.2f}, {s.max():.2f}] does not fit in the vessel [0, {arc[-1]:.2f}]"
+        )
     _, n1, n2 = transport_frames(pts)
     interp = lambda a: np.stack([np.interp(s, arc, a[:, k]) for k in range(3)], 1)  # noqa: E731
     centre, f1 = interp(pts), interp(n1)

@@ -336,7 +336,7 @@ def nearest_segment(cl: Centreline, x: jnp.ndarray, seg: jnp.ndarray, window: in
 
 
 def rotation_matrix(axis: str, angle_deg: float) -> np.ndarray:
-    """``[3, 3]`` rotation by ``angle_deg`` about the coordinate axis ``"x"``, ``"y"`` or ``"z"``."""
+    """``[3, 3]`` rotation by ``angle_deg`` about the coordinate axis ``"x"``, ``"y"``, ``"z"``."""
     a = np.deg2rad(angle_deg)
     c, s = np.cos(a), np.sin(a)
     i = "xyz".index(axis)

@@ -101,6 +101,4 @@ def elastic_energy(
     j_node = vol_node / vol0_node
     u_node = 0.5 * kappa * jnp.log(j_node) ** 2
     u_elem = 0.5 * kappa * jnp.log(j) ** 2
-    return (
-        jnp.sum(vol0 * (w_dev + beta * u_elem)) + (1.0 - beta) * jnp.sum(vol0_node * u_node)
-    )
+    return jnp.sum(vol0 * (w_dev + beta * u_elem)) + (1.0 - beta) * jnp.sum(vol0_node * u_node)

@@ -36,7 +36,9 @@ class Preset:
         speed of a free clot; young_range, poisson_range: clot stiffness.
         squeeze: placed radius / local radius; ramp_time: drive ramp duration.
         penetration_target: contact stiffness aims at this penetration / radius;
-        min_contact_pressure: floor of the pressure (times E) that sizes the stiffness.
+        min_contact_pressure: floor of the pressure (times E) that sizes the stiffness;
+        penetration_cap: hard cap on penetration / radius (normal velocity clamp).
+        beta: element fraction of the volumetric energy (material.py).
         contact_damping: normal damping ratio; min_alpha: lower bound of mass damping.
         safety: fraction of the stable substep; exit_margin: distance past the outlet.
         n_buffer: stored dense frames (odd); max_substeps: safety cap per simulation.
@@ -67,9 +69,9 @@ class Preset:
     clot_length: float = 3.0
     clot_start_range: tuple[float, float] = (0.5, 1.5)
     roll_range: tuple[float, float] = (0.0, 90.0)
-    oversize_range: tuple[float, float] = (1.1, 1.25)
-    friction_range: tuple[float, float] = (0.1, 0.5)
-    drive_ratio_range: tuple[float, float] = (1.6, 2.4)
+    oversize_range: tuple[float, float] = (1.08, 1.2)
+    friction_range: tuple[float, float] = (0.1, 0.3)
+    drive_ratio_range: tuple[float, float] = (1.3, 2.0)
     flow_speed_range: tuple[float, float] = (0.2, 0.3)
     young_range: tuple[float, float] = (0.8, 1.2)
     poisson_range: tuple[float, float] = (0.45, 0.49)
@@ -77,9 +79,11 @@ class Preset:
     ramp_time: float = 6.0
     penetration_target: float = 0.005
     min_contact_pressure: float = 0.3
+    penetration_cap: float = 0.01
+    beta: float = 0.5
     contact_damping: float = 0.5
     min_alpha: float = 0.5
-    safety: float = 0.7
+    safety: float = 0.5
     exit_margin: float = 0.5
     n_buffer: int = 161
     max_substeps: int = 200_000

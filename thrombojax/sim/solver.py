@@ -6,7 +6,9 @@ One substep (semi-implicit Euler, lumped mass ``m``)::
         - (k A pen + c vn) n                           wall penalty + normal damping, n outward
     a   = f / m + g(t) t(x)                            drive: body acceleration along the tangent
     v*  = (v + dt a) / (1 + alpha dt)                  mass-proportional damping, implicit
-    v'  = Coulomb cap on the tangential part of v*     stick if |v_t| <= dt mu k A pen / m
+    v_n <= (phi + pen_cap r) / dt                      hard penetration cap (rarely active)
+    v'  = Coulomb cap on the tangential part of v*     stick if |v_t| <= mu (dt k A pen / m
+                                                                              + cut v_n)
     x'  = x + dt v'
 
 The penalty stiffness per unit area ``k`` comes from the expected contact pressure and a
@@ -50,7 +52,8 @@ class CaseParams:
         mu, kappa: shear and bulk moduli; k_contact: penalty stiffness per unit area;
         zeta: contact damping ratio; friction: Coulomb coefficient; drive: final body
         acceleration; ramp_time: time of the linear drive ramp; alpha: mass damping;
-        dt: substep; exit_margin: distance past the outlet that counts as "out".
+        dt: substep; exit_margin: distance past the outlet that counts as "out";
+        pen_cap: largest penetration / radius allowed (normal velocity clamp).
     """
 
     x0: jnp.ndarray
@@ -70,6 +73,7 @@ class CaseParams:
     alpha: jnp.ndarray
     dt: jnp.ndarray
     exit_margin: jnp.ndarray
+    pen_cap: jnp.ndarray
 
 
 @struct.dataclass
@@ -79,7 +83,8 @@ class RunResult:
     Attributes:
         frames: ``[n_buffer, N, 3]`` stored positions; the first ``count`` are valid, frame
             ``k`` at time ``k * stride * dt``.
-        kinetic: ``[n_buffer]``; elastic ``[n_buffer]``: energies of the stored frames.
+        kinetic: ``[n_buffer]``; elastic ``[n_buffer]``: energies of the stored frames;
+        inside: ``[n_buffer]`` fraction of clot nodes inside the vessel (not past an end).
         count: number of valid frames; stride: substeps between stored frames.
         steps: substeps run; exited: whether the clot left the vessel.
         max_penetration: largest wall penetration over all substeps, relative to the radius.
@@ -88,6 +93,7 @@ class RunResult:
     frames: jnp.ndarray
     kinetic: jnp.ndarray
     elastic: jnp.ndarray
+    inside: jnp.ndarray
     count: jnp.ndarray
     stride: jnp.ndarray
     steps: jnp.ndarray
@@ -100,14 +106,21 @@ def energy_fn(p: CaseParams, tets: jnp.ndarray, beta: float = DEFAULT_BETA):
     return lambda x: elastic_energy(x, tets, p.dm_inv, p.vol0, p.vol0_node, p.mu, p.kappa, beta)
 
 
-def stable_dt(p: CaseParams, tets: jnp.ndarray, *, safety: float, iters: int = 60) -> jnp.ndarray:
+def stable_dt(
+    p: CaseParams,
+    tets: jnp.ndarray,
+    *,
+    safety: float,
+    beta: float = DEFAULT_BETA,
+    iters: int = 60,
+) -> jnp.ndarray:
     """Stable explicit substep ``safety * 2 / sqrt(lambda_el + lambda_contact)``.
 
     ``lambda_el`` is the largest eigenvalue of ``M^-1/2 H M^-1/2`` at ``p.x0`` (power iteration
     with Hessian-vector products, 5 % added for its slow convergence); ``lambda_contact`` the
     largest ``k_contact * area / mass``. Jittable; ``p.dt`` is ignored.
     """
-    grad = jax.grad(energy_fn(p, tets))
+    grad = jax.grad(energy_fn(p, tets, beta))
     s = 1.0 / jnp.sqrt(p.mass)[:, None]
 
     def hvp(u):
@@ -139,8 +152,12 @@ def _substep(p: CaseParams, cl: Centreline, grad, carry):
     v1 = (v + p.dt * acc) / (1.0 + p.alpha * p.dt)
     vn1 = jnp.sum(v1 * n, axis=1)
     vt = v1 - vn1[:, None] * n
+    # hard cap: no node ends the substep deeper than pen_cap * r (linearised wall)
+    vn_max = jnp.where(geo["inside"], (geo["phi"] + p.pen_cap * geo["radius"]) / p.dt, jnp.inf)
+    vn_cut = jnp.maximum(vn1 - vn_max, 0.0)
+    vn1 = vn1 - vn_cut
     speed = jnp.linalg.norm(vt, axis=1)
-    cap = p.dt * p.friction * fn / p.mass
+    cap = p.friction * (p.dt * fn / p.mass + vn_cut)
     keep = jnp.where(speed > cap, 1.0 - cap / jnp.maximum(speed, 1e-30), 0.0)
     v1 = vn1[:, None] * n + keep[:, None] * vt
     pen_max = jnp.maximum(pen_max, jnp.max(pen / geo["radius"]))
@@ -180,7 +197,8 @@ def run(
     state = {
         "x": p.x0, "v": jnp.zeros_like(p.x0), "seg": p.seg0, "step": jnp.int32(0),
         "pen": jnp.zeros((), dtype), "frames": frames, "kinetic": zeros,
-        "elastic": zeros.at[0].set(energy(p.x0)), "count": jnp.int32(1),
+        "elastic": zeros.at[0].set(energy(p.x0)), "inside": zeros.at[0].set(1.0),
+        "count": jnp.int32(1),
         "stride": jnp.int32(1), "exited": jnp.bool_(False),
     }  # fmt: skip
 
@@ -190,7 +208,7 @@ def run(
     def decimate(s):
         half = (n_buffer + 1) // 2
         out = dict(s)
-        for key in ("frames", "kinetic", "elastic"):
+        for key in ("frames", "kinetic", "elastic", "inside"):
             out[key] = s[key].at[:half].set(s[key][::2])
         out["count"] = jnp.int32(half)
         out["stride"] = 2 * s["stride"]
@@ -208,11 +226,13 @@ def run(
         out["elastic"] = s["elastic"].at[k].set(energy(x))
         geo = nearest_segment(cl, x, seg)
         out["exited"] = jnp.all(geo["beyond"] > p.exit_margin)
+        out["inside"] = s["inside"].at[k].set(jnp.mean(geo["inside"].astype(dtype)))
         return jax.lax.cond(out["count"] == n_buffer, decimate, lambda t: t, out)
 
     s = jax.lax.while_loop(cond, body, state)
     return RunResult(
-        frames=s["frames"], kinetic=s["kinetic"], elastic=s["elastic"], count=s["count"],
+        frames=s["frames"], kinetic=s["kinetic"], elastic=s["elastic"], inside=s["inside"],
+        count=s["count"],
         stride=s["stride"], steps=s["step"], exited=s["exited"], max_penetration=s["pen"],
     )  # fmt: skip
 

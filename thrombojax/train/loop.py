@@ -36,7 +36,7 @@ from thrombojax.data.batching import (
     padding_budget,
 )
 from thrombojax.errors import CapacityOverflowError, ConfigError, ThrombojaxError
-from thrombojax.train.config import TrainConfig
+from thrombojax.train.config import TrainConfig, load_config_file
 from thrombojax.train.schedule import make_optimizer, make_schedule
 from thrombojax.train.state import (
     TrainedModel,
@@ -58,14 +58,18 @@ from thrombojax.train.step import (
 
 __all__ = ["train", "TrainingDivergedError", "plot_losses"]
 
+_EVAL_EPOCH = 2**31 - 1  # seed stream of the validation subsets, never a training epoch
+
 
 class TrainingDivergedError(ThrombojaxError, FloatingPointError):
     """The training loss became NaN or infinite; the last good checkpoint is kept."""
 
 
-def _resolve(config: TrainConfig | dict | None, overrides: dict) -> TrainConfig:
+def _resolve(config: Any, overrides: dict) -> TrainConfig:
     if config is None:
         config = TrainConfig()
+    elif isinstance(config, str | pathlib.Path):
+        config = load_config_file(config)
     elif isinstance(config, dict):
         config = TrainConfig.from_dict(config)
     return config.replace(**overrides) if overrides else config
@@ -76,10 +80,11 @@ def train(
     model_name: str,
     out_dir: str | pathlib.Path,
     *,
-    config: TrainConfig | dict | None = None,
+    config: TrainConfig | dict | str | pathlib.Path | None = None,
     resume: bool = False,
     progress: bool = True,
     callback: Callable[[int, dict], None] | None = None,
+    distributed: bool = False,
     **overrides: Any,
 ) -> TrainedModel:
     """Train a surrogate on a dataset and write a run directory.
@@ -88,12 +93,15 @@ def train(
         dataset_path: a thrombojax HDF5 dataset.
         model_name: ``mgn``, ``transolver`` or ``erwin`` (any registered model).
         out_dir: the run directory (created; must hold no run unless ``resume``).
-        config: a :class:`TrainConfig` (or its dict); ``overrides`` replace its fields.
+        config: a :class:`TrainConfig`, its dict or a JSON file; ``overrides`` replace its fields.
         resume: continue the run in ``out_dir`` from its last checkpoint; its saved config is
             used, and overrides that contradict it raise :class:`ConfigError`.
         progress: show a tqdm progress bar.
         callback: called as ``callback(step, metrics)`` after every step (host floats), after
             any checkpoint of that step is on disk.
+        distributed: call ``jax.distributed.initialize()`` first (multi-host; see
+            :mod:`thrombojax.train.step`).
+        **overrides: :class:`TrainConfig` fields.
     Returns:
         The best :class:`TrainedModel` (lowest validation MSE).
     """
@@ -102,6 +110,8 @@ def train(
     from thrombojax.io.hdf5 import open_dataset
     from thrombojax.models.registry import canonical_name, config_to_dict, create_model, get_config
 
+    if distributed:
+        jax.distributed.initialize()
     out_dir = pathlib.Path(out_dir)
     model_name = canonical_name(model_name)
     cfg = _resolve(config, overrides)
@@ -127,7 +137,7 @@ def train(
                               seed=cfg.split_seed)
     train_store = load_store(ds, split.train, scaling, skip=cfg.skip_frames)
     val_store = load_store(ds, split.val, scaling, skip=cfg.skip_frames) if split.val else None
-    stats = compute_target_stats(train_store)
+    stats = compute_target_stats(train_store, isotropic=cfg.max_rotation > 0)
 
     model_over = dict(cfg.model_config)
     if cfg.radius is not None:
@@ -166,7 +176,7 @@ def train(
         state, run_key, meta = restore_checkpoint(out_dir / "checkpoints" / "last", state, run_key)
         best, acc = float(meta["best"]), np.asarray(meta["epoch_acc"], np.float64)
         _truncate_log(out_dir / "metrics.jsonl", int(state.step))
-    else:
+    elif jax.process_index() == 0:
         write_run_config(out_dir, run_config)
         (out_dir / "metrics.jsonl").write_text("")
 
@@ -241,19 +251,21 @@ def train(
             if callback is not None:
                 callback(step + 1, metrics)
     bar.close()
-    plot_losses(out_dir / "metrics.jsonl", out_dir / "loss.png")
+    if jax.process_index() == 0:
+        plot_losses(out_dir / "metrics.jsonl", out_dir / "loss.png")
     return load_trained(out_dir, which="best")
 
 
 def _eval_batches(store, budget: int, batch_size: int, cfg: TrainConfig) -> list:
-    """Validation batches: every window once, fixed subsample (seed, epoch -1), no augmentation."""
+    """Validation batches: every window once, in order, no augmentation, with a fixed node subset
+    (seeded by ``(seed, _EVAL_EPOCH, batch)``, the same every epoch)."""
     plan = epoch_plan(len(store), bary_ratio=0.0, batch_size=batch_size, seed=cfg.seed, epoch=0)
     plan = plan.reshape(-1, 2)
     order = np.argsort(np.where(plan[:, 0] < 0, len(store), plan[:, 0]), kind="stable")
     plan = plan[order].reshape(-1, batch_size, 2)
     return [
         make_batch(store, entries, budget, nodes_per_sample=cfg.nodes_per_sample,
-                   seed=cfg.seed, epoch=-1, position=i)
+                   seed=cfg.seed, epoch=_EVAL_EPOCH, position=i)
         for i, entries in enumerate(plan)
     ]
 
@@ -273,6 +285,8 @@ def _end_epoch(epoch, step, acc, val_batches, eval_step, state, mesh, lr, elapse
 
 
 def _log(out_dir: pathlib.Path, record: dict) -> None:
+    if jax.process_index() != 0:
+        return
     with open(out_dir / "metrics.jsonl", "a") as f:
         f.write(json.dumps(record) + "\n")
 

@@ -79,7 +79,7 @@ class TrainedModel:
 
 def _manager(directory: pathlib.Path, *, read_only: bool = False) -> ocp.CheckpointManager:
     options = ocp.CheckpointManagerOptions(
-        max_to_keep=1, enable_async_checkpointing=False, create=not read_only, read_only=read_only
+        max_to_keep=1, enable_async_checkpointing=False, create=not read_only
     )
     return ocp.CheckpointManager(
         directory.resolve(), options=options, item_names=("params", "train", "meta")
