@@ -127,3 +127,14 @@ def test_inconsistent_config_raises():
     inputs = _inputs(N)
     with pytest.raises(ConfigError, match="dec_heads"):
         jax.eval_shape(lambda i: bad.init(jax.random.key(0), i, bad.build_graph(i)), inputs)
+
+
+def test_rotated_tree_is_used(setup):
+    # Same parameters without the rotated tree (rotate=0): the odd blocks then run in plain
+    # tree order, so the outputs must change.
+    model, inputs, graph, params, apply = setup
+    plain = create_model("erwin", get_config("erwin", tiny=True, rotate=0.0))
+    graph0 = plain.build_graph(inputs)
+    assert graph0.tree.rot_perm == ()
+    out0 = jax.jit(plain.apply)(params, inputs, graph0)
+    assert float(jnp.abs(out0 - apply(params, inputs, graph)).max()) > 1e-7

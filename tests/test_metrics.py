@@ -96,8 +96,8 @@ def test_containment_with_wall_mesh_and_open_ends():
     vw = fit_vessel_wall(positions, node_type, wall_cells=tris + 4)
     rim = np.linalg.norm(vw.rim_dir, axis=1) > 0
     assert rim.sum() == 24 and set(np.unique(vw.points[rim, 0])) == {0.0, 6.0}
-    np.testing.assert_allclose(vw.rim_dir[rim & (vw.points[:, 0] == 6.0)], [[1, 0, 0]] * 12,
-                               atol=1e-6)
+    assert (vw.rim_dir[rim & (vw.points[:, 0] == 6.0), 0] > 0.9).all()  # out of the outlet
+    assert (vw.rim_dir[rim & (vw.points[:, 0] == 0.0), 0] < -0.9).all()
     out = [fraction_outside(vw, positions[None], np.arange(len(positions)) == i)[0]
            for i in range(4)]
     assert out == [0.0, 1.0, 0.0, 0.0]

@@ -37,8 +37,9 @@ def test_local_search_matches_brute_force(bent):
     ref = geo.signed_distance_np(bent, x)
     # start the tracking one segment off, as after a substep
     guess = np.clip(ref["seg"] + rng.integers(-1, 2, len(x)), 0, len(bent.seg_len) - 1)
-    cl = geo.Centreline(*(jnp.asarray(a) for a in
-                          (bent.points, bent.radius, bent.tangent, bent.seg_len, bent.arc)))
+    cl = geo.Centreline(
+        *(jnp.asarray(a) for a in (bent.points, bent.radius, bent.tangent, bent.seg_len, bent.arc))
+    )
     got = geo.nearest_segment(cl, jnp.asarray(x), jnp.asarray(guess, jnp.int32))
     np.testing.assert_allclose(np.asarray(got["phi"]), ref["phi"], atol=1e-5)
     assert np.array_equal(~np.asarray(got["inside"]), ref["outside"])

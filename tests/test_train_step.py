@@ -78,8 +78,11 @@ def test_losses_are_masked_and_match_the_rollout_step():
     stats = _stats(batch)
     frames, nt, mask = (jnp.asarray(x[0]) for x in (batch.frames, batch.node_type, batch.mask))
     state = init_state(model, make_optimizer(1e-3), jax.random.PRNGKey(0), batch)
-    terms = sample_loss_terms(model, state.params, stats, frames, nt, mask, train=False, rng=None)
-    x_next, out = predict_next(model, state.params, stats, frames[0], frames[1], nt, mask)
+    terms_fn = jax.jit(lambda p, f: sample_loss_terms(model, p, stats, f, nt, mask, train=False,
+                                                      rng=None))
+    terms = terms_fn(state.params, frames)
+    x_next, out = jax.jit(lambda p: predict_next(model, p, stats, frames[0], frames[1], nt,
+                                                 mask))(state.params)
     clot = mask & (nt == NodeType.CLOT)
     np.testing.assert_allclose(terms["mse_sum"] / terms["count"],
                                masked_mse(x_next, frames[2], clot), rtol=1e-5)
@@ -88,7 +91,7 @@ def test_losses_are_masked_and_match_the_rollout_step():
                                masked_mse(out, target, clot), rtol=1e-5)
     assert float(terms["count"]) == 20
     moved = frames.at[:, ~np.asarray(mask)].set(5.0)  # padding never reaches the loss
-    again = sample_loss_terms(model, state.params, stats, moved, nt, mask, train=False, rng=None)
+    again = terms_fn(state.params, moved)
     np.testing.assert_allclose(again["loss_sum"], terms["loss_sum"], rtol=1e-6)
 
 
@@ -102,7 +105,9 @@ def test_train_step_updates_and_eval_is_deterministic():
     eval_step = make_eval_step(model, stats)
     m0 = eval_step(state.params, batch)
     np.testing.assert_array_equal(m0["loss"], eval_step(state.params, batch)["loss"])
-    loss, _ = batch_loss(model, state.params, stats, batch, None, train=False)
+    loss, _ = jax.jit(lambda p: batch_loss(model, p, stats, batch, None, train=False))(
+        state.params
+    )
     np.testing.assert_allclose(m0["loss"], loss, rtol=1e-6)
     state, metrics = make_train_step(model, tx, stats)(state, batch, jax.random.PRNGKey(1))
     assert int(state.step) == 1 and np.isfinite(float(metrics["grad_norm"]))

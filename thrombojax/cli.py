@@ -289,7 +289,7 @@ def _add_rollout(sub) -> None:
     p.add_argument("--skip", type=int, help="skipped frames (default 5, or 40 for ClotEntry)")
     p.add_argument("--steps", type=int, help="rollout steps (default: to the last frame)")
     p.add_argument("--nodes", type=int, help="fixed seeded node subset (the study: 2048 on "
-                   "ClotEntry; default all nodes)")
+                   "ClotEntry; default: the run's nodes_per_sample, else all nodes)")
     p.add_argument("--seed", type=int, default=0, help="seed of the node subset")
     p.add_argument("--format", default="xdmf", choices=("xdmf", "vtu"), help="ParaView format")
     p.add_argument("--no-gif", action="store_true", help="skip the animation")

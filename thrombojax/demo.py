@@ -4,7 +4,9 @@
 
 1. generate a small BendVessel-like dataset with the built-in solver (a few rotated copies
    of the bent tube, fewer than the study's 20);
-2. train a small MeshGraphNet for a few minutes;
+2. train a small MeshGraphNet for a few minutes (one calibration epoch measures the speed of
+   this machine, then the epoch count is chosen to fit ``train_minutes``, so the learning-rate
+   schedule runs its whole course);
 3. evaluate it (single-step test MSE beside the constant-velocity baseline);
 4. roll it out on the test simulation (trajectory HDF5, ParaView XDMF, GIF, error plots);
 5. benchmark rollouts of all three models at the BendVessel size (random-initialised study
@@ -32,7 +34,9 @@ class DemoConfig:
     Attributes:
         preset: solver preset. n_sims: simulations generated. n_frames: frames per simulation
             (``None``: the preset's).
-        epochs: training epochs. model_config: MeshGraphNet overrides (small, fast on CPU).
+        train_minutes: training time budget (the epoch count is calibrated to fit it).
+        min_epochs, max_epochs: bounds of the calibrated epoch count.
+        model_config: MeshGraphNet overrides (small, fast on CPU).
         batch_size: training batch size. bench_steps: rollout steps timed per model (the
             rest of the 35 is extrapolated per step). tiny_models: bench the tiny configs.
     """
@@ -40,16 +44,18 @@ class DemoConfig:
     preset: str = "bendvessel"
     n_sims: int = 6
     n_frames: int | None = None
-    epochs: int = 30
+    train_minutes: float = 6.0
+    min_epochs: int = 2
+    max_epochs: int = 60
     model_config: dict = dataclasses.field(
-        default_factory=lambda: {"hidden": 32, "processor_size": 6, "max_neighbors": 16})
+        default_factory=lambda: {"hidden": 32, "processor_size": 5, "max_neighbors": 12})
     batch_size: int = 4
     bench_steps: int = 5
     tiny_models: bool = False
 
     @classmethod
     def tiny(cls) -> DemoConfig:
-        return cls(preset="bendvessel-tiny", n_sims=4, epochs=2, model_config={},
+        return cls(preset="bendvessel-tiny", n_sims=4, train_minutes=0.0, model_config={},
                    batch_size=2, bench_steps=2, tiny_models=True)
 
 
@@ -95,11 +101,14 @@ def run_demo(out: str | pathlib.Path, config: DemoConfig = DemoConfig(), *,
     paths["dataset"] = pathlib.Path(data)
     print(f"   {time.perf_counter() - t:.0f} s")
 
-    t = _stage(f"2/6 train a small MeshGraphNet ({config.epochs} epochs)")
+    t = _stage(f"2/6 train a small MeshGraphNet (~{config.train_minutes:g} min)")
+    common = dict(tiny=config.tiny_models, model_config=dict(config.model_config),
+                  batch_size=config.batch_size, n_val=1, n_test=1)
+    epochs = _calibrate_epochs(data, out / "calibration", config, common, progress)
+    print(f"   calibrated: {epochs} epochs fit the budget")
     run = out / "run_mgn"
-    train(data, "mgn", run, epochs=config.epochs, tiny=config.tiny_models,
-          model_config=dict(config.model_config), batch_size=config.batch_size, n_val=1,
-          n_test=1, warmup_epochs=min(2.0, config.epochs / 5), progress=progress)
+    train(data, "mgn", run, epochs=epochs, warmup_epochs=min(2.0, epochs / 5),
+          progress=progress, **common)
     paths["run"] = run
     paths["loss_png"] = run / "loss.png"
     print(f"   {time.perf_counter() - t:.0f} s")
@@ -142,6 +151,27 @@ def run_demo(out: str | pathlib.Path, config: DemoConfig = DemoConfig(), *,
     return paths
 
 
+def _calibrate_epochs(data, folder: pathlib.Path, config: DemoConfig, common: dict,
+                     progress: bool) -> int:
+    """Train one epoch to time this machine; return the epochs that fit the budget."""
+    import shutil
+
+    from thrombojax.train.loop import train
+
+    if config.train_minutes <= 0:
+        return config.min_epochs
+    stamps: list[float] = []
+    train(data, "mgn", folder, epochs=1, warmup_epochs=0.0, progress=progress,
+          callback=lambda step, metrics: stamps.append(time.perf_counter()), **common)
+    shutil.rmtree(folder)
+    steps = len(stamps)
+    # the first step includes compilation: time the others, extrapolate to a whole epoch
+    per_step = (stamps[-1] - stamps[0]) / max(steps - 1, 1)
+    epoch_s = per_step * steps
+    fit = int(config.train_minutes * 60 // max(epoch_s, 1e-9))
+    return int(min(max(fit, config.min_epochs), config.max_epochs))
+
+
 def _write_bench(result: dict, folder: pathlib.Path) -> None:
     import json
 
@@ -159,12 +189,12 @@ def main(argv: list[str] | None = None) -> int:
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--out", default="demo_output", help="output folder (replaced)")
     parser.add_argument("--tiny", action="store_true", help="seconds-long version (tests)")
-    parser.add_argument("--epochs", type=int, help="override the training epochs")
+    parser.add_argument("--train-minutes", type=float, help="training time budget (minutes)")
     parser.add_argument("--quiet", action="store_true", help="no progress bars")
     args = parser.parse_args(argv)
     config = DemoConfig.tiny() if args.tiny else DemoConfig()
-    if args.epochs:
-        config = dataclasses.replace(config, epochs=args.epochs)
+    if args.train_minutes is not None:
+        config = dataclasses.replace(config, train_minutes=args.train_minutes)
     from thrombojax.errors import ThrombojaxError
 
     try:

@@ -24,6 +24,7 @@ import numpy as np
 
 from thrombojax.evaluate import (
     RolloutResult,
+    config_value,
     default_skip,
     markdown_table,
     rollout_simulation,
@@ -131,7 +132,8 @@ def rollout_run(
         skip: skipped frames; the rollout starts at frame ``max(skip, 1)`` (default: 5, or 40
             for ClotEntry datasets, as in the study).
         n_steps: predicted frames (default: to the end).
-        n_nodes: fixed seeded node subset size (default: all nodes).
+        n_nodes: fixed seeded node subset size (default: the run's ``nodes_per_sample``, the
+            density it was trained on, else all nodes).
         seed: subset seed. format: ``"xdmf"`` or ``"vtu"``. gif: write the animation.
     Returns:
         JSON-ready summary (also written to ``rollout.json``; table in ``rollout.md``).
@@ -147,6 +149,7 @@ def rollout_run(
     if missing:
         raise DatasetError(f"{dataset_path}: no simulation(s) {missing}; have {list(ds.names)}")
     skip = default_skip(ds) if skip is None else int(skip)
+    n_nodes = n_nodes or config_value(trained.config, "nodes_per_sample", default=None)
     out_dir = pathlib.Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     report, rows = {}, []

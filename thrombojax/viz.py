@@ -15,6 +15,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.animation import FuncAnimation, PillowWriter  # noqa: E402
+from matplotlib.ticker import MaxNLocator  # noqa: E402
 
 from thrombojax.types import NodeType  # noqa: E402
 
@@ -57,6 +58,7 @@ def _draw_curves(ax, curves, start, logy):
         ax.plot(np.arange(start, start + values.size), values, label=label, **style)
     if logy and all(np.all(np.asarray(v) > 0) for v in curves.values()):
         ax.set_yscale("log")
+    ax.xaxis.set_major_locator(MaxNLocator(integer=True))
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
 

@@ -119,25 +119,41 @@ def find_sample_triangles(
     *,
     radius: float,
     max_neighbors: int,
-    max_triangles: int,
-) -> tuple[jax.Array, jax.Array, jax.Array]:
+) -> tuple[jax.Array, jax.Array]:
     """Triangles of the radius graph of one frame (the edge set of Algorithm 1), jittable.
+
+    :func:`thrombojax.graph.triangles.find_triangles` is the host (numpy) reference; this is its
+    fixed-shape version for ``jit``, so BaryCentricSampling runs on the device inside the input
+    pipeline with no host round trip and no buffer that can overflow: every node ``i`` checks the
+    ``K (K - 1) / 2`` pairs ``(a, b)`` of its own neighbour list (an edge ``a - b`` exists when
+    either lists the other) and keeps a triangle when ``i`` is its smallest vertex, so each
+    triangle appears once. When no neighbour list is capped (``counts <= K``) the set equals the
+    reference's (tested); a capped list can only drop triangles, never invent one.
 
     Args:
         positions: ``[n_nodes, 3]`` positions s_t (scaled).
         mask: ``[n_nodes]`` real-node mask.
-        radius, max_neighbors: the radius graph (fixed capacity, :mod:`thrombojax.graph`).
-        max_triangles: capacity of the triangle buffer.
+        radius, max_neighbors: the radius graph (:func:`thrombojax.graph.neighbors.radius_graph`).
     Returns:
-        ``(triangles [max_triangles, 3] int32, count [] int32, overflow [] bool)``; rows at or
-        beyond ``count`` are padding. The caller re-allocates on ``overflow``.
+        ``(triangles [n_nodes * K (K - 1) / 2, 3] int32, valid [same] bool)``, rows
+        ``(i, a, b)`` with ``i < a < b`` where valid.
     """
     from thrombojax.graph.neighbors import radius_graph
-    from thrombojax.graph.triangles import find_triangles
 
     nbrs = radius_graph(positions, radius, max_neighbors, mask=mask)
-    triangles, count, overflow = find_triangles(nbrs, max_triangles)
-    return triangles.astype(jnp.int32), count, overflow
+    idx = nbrs.indices.astype(jnp.int32)
+    n, k = idx.shape
+    first, second = np.triu_indices(k, 1)
+    a, b = idx[:, first], idx[:, second]  # [N, P] neighbour pairs of each node
+    lo, hi = jnp.minimum(a, b), jnp.maximum(a, b)
+    padded = jnp.concatenate([idx, jnp.full((1, k), n, jnp.int32)])  # row n: the sentinel's
+    edge = jnp.any(padded[lo] == hi[..., None], axis=-1) | jnp.any(
+        padded[hi] == lo[..., None], axis=-1
+    )
+    me = jnp.arange(n, dtype=jnp.int32)[:, None]
+    valid = (hi < n) & edge & (me < lo)
+    triangles = jnp.stack([jnp.broadcast_to(me, lo.shape), lo, hi], axis=-1)
+    return triangles.reshape(-1, 3), valid.reshape(-1)
 
 
 def barycentric_resample(
@@ -146,7 +162,7 @@ def barycentric_resample(
     node_type: jax.Array,
     mask: jax.Array,
     triangles: jax.Array,
-    count: jax.Array,
+    valid: jax.Array,
 ) -> tuple[jax.Array, jax.Array, jax.Array]:
     """BaryCentricSampling (thesis Algorithm 1): a generated sample of points on triangles.
 
@@ -154,29 +170,29 @@ def barycentric_resample(
         key: PRNG key.
         frames: ``[n_frames, n_nodes, 3]`` the window (s_{t-1}, s_t, s_{t+1}).
         node_type: ``[n_nodes]`` NodeType values. mask: ``[n_nodes]`` real-node mask.
-        triangles: ``[M, 3]`` vertex indices; rows ``>= count`` are padding.
-        count: ``[]`` number of valid triangles.
+        triangles: ``[M, 3]`` vertex indices. valid: ``[M]`` bool, the rows that are triangles.
     Returns:
         ``(new_frames [n_frames, n_nodes, 3], coefficients [n_nodes, 3], vertices [n_nodes, 3])``:
         node ``i`` of the generated sample is
-        ``sum_k coefficients[i, k] * frames[:, vertices[i, k]]`` in every frame; it has node
-        ``i``'s type and mask. Padded nodes are copied.
+        ``sum_k coefficients[i, k] * frames[:, vertices[i, k]]`` in every frame (the triangle is
+        drawn uniformly among those of node ``i``'s type); it keeps node ``i``'s type and mask.
+        Padded nodes, and nodes of a type without triangles, are copied (coefficients (1, 0, 0)).
     """
     n_nodes = node_type.shape[0]
     n_tri = triangles.shape[0]
     k_coef, k_pick = jax.random.split(key)
     coef = jax.random.dirichlet(k_coef, jnp.ones((3,), jnp.float32), (n_nodes,))
-    valid = jnp.arange(n_tri) < count
     tri_types = node_type[jnp.clip(triangles, 0, n_nodes - 1)]
     uniform = jax.random.uniform(k_pick, (n_nodes,))
     self_tri = jnp.broadcast_to(jnp.arange(n_nodes, dtype=jnp.int32)[:, None], (n_nodes, 3))
     vertices = self_tri
     for kind in range(NUM_NODE_TYPES):
         ok = valid & jnp.all(tri_types == kind, axis=1)
-        n_ok = ok.sum()
-        order = jnp.argsort(~ok, stable=True)  # valid triangles of this type first
-        pick = jnp.clip(jnp.floor(uniform * n_ok).astype(jnp.int32), 0, n_tri - 1)
-        chosen = triangles[order[pick]].astype(jnp.int32)
+        cum = jnp.cumsum(ok.astype(jnp.int32))
+        n_ok = cum[-1]
+        rank = jnp.floor(uniform * n_ok).astype(jnp.int32) + 1  # 1 .. n_ok
+        slot = jnp.clip(jnp.searchsorted(cum, rank, side="left"), 0, n_tri - 1)
+        chosen = triangles[slot].astype(jnp.int32)
         use = (node_type == kind) & mask & (n_ok > 0)
         vertices = jnp.where(use[:, None], chosen, vertices)
     generated = jnp.logical_not(jnp.all(vertices == self_tri, axis=1))
@@ -193,14 +209,12 @@ class AugmentConfig:
         max_rotation: largest rotation angle in radians (0 disables rotations).
         barycentric: whether the batch may contain generated (BaryCentricSampling) samples.
         radius, max_neighbors: the radius graph whose triangles BaryCentricSampling uses.
-        max_triangles: triangle buffer capacity per sample (re-allocated on overflow).
     """
 
     max_rotation: float = float(np.pi)
     barycentric: bool = False
     radius: float = 0.5
-    max_neighbors: int = 32
-    max_triangles: int = 4096
+    max_neighbors: int = 16
 
 
 def augment_batch(key: jax.Array, batch, config: AugmentConfig):
@@ -211,30 +225,21 @@ def augment_batch(key: jax.Array, batch, config: AugmentConfig):
         batch: a :class:`thrombojax.data.batching.Batch` (``frames [B, 3, N, 3]``).
         config: the augmentations.
     Returns:
-        ``(batch, overflow)``: the augmented batch and a ``[]`` bool, True when a triangle buffer
-        overflowed (the caller raises ``max_triangles`` and redoes the batch).
+        The augmented batch (same shapes).
     """
 
     def one(k, frames, node_type, mask, generated):
         k_bary, k_rot = jax.random.split(k)
-        overflow = jnp.zeros((), bool)
         if config.barycentric:
-            triangles, count, overflow = find_sample_triangles(
-                frames[1],
-                mask,
-                radius=config.radius,
-                max_neighbors=config.max_neighbors,
-                max_triangles=config.max_triangles,
+            triangles, valid = find_sample_triangles(
+                frames[1], mask, radius=config.radius, max_neighbors=config.max_neighbors
             )
-            new, _, _ = barycentric_resample(k_bary, frames, node_type, mask, triangles, count)
+            new, _, _ = barycentric_resample(k_bary, frames, node_type, mask, triangles, valid)
             frames = jnp.where(generated, new, frames)
-            overflow = overflow & generated
         if config.max_rotation > 0:
             frames = rotate_window(frames, random_rotation(k_rot, config.max_rotation))
-        return frames, overflow
+        return frames
 
     keys = jax.random.split(key, batch.size)
-    frames, overflow = jax.vmap(one)(
-        keys, batch.frames, batch.node_type, batch.mask, batch.generated
-    )
-    return batch.replace(frames=frames), jnp.any(overflow)
+    frames = jax.vmap(one)(keys, batch.frames, batch.node_type, batch.mask, batch.generated)
+    return batch.replace(frames=frames)

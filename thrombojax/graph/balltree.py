@@ -19,6 +19,18 @@ Facts taken from the official code (github.com/maxxxzdn/erwin, ``balltree/balltr
   rotated position, the index into the level-``l`` ordering: ``x_l[rot_perm[l]]`` is the
   rotated ordering (Erwin's ``tree_idx_rot``) and ``y[rot_inverse[l]]`` maps back.
 
+Usage in an Erwin layer (``B`` ball size, ``s`` stride, features ``x [N, C]``)::
+
+    tree = build_balltree(pos, mask=mask, strides=(2, 2, 2), ball_sizes=(128,) * 4, rotate=45)
+    h, p = x[tree.perm], pos[tree.perm]           # level 0, [P, C]; balls: h.reshape(-1, B, C)
+    hr = h[tree.rot_perm[0]]                       # rotated ordering of the same items
+    h = block(hr, p[tree.rot_perm[0]])[tree.rot_inverse[0]]   # back to the tree ordering
+    h1 = h.reshape(-1, s, C) ...; p1 = p.reshape(-1, s, 3).mean(1)   # level 1 (pooling)
+    out = h[tree.inverse]                          # level 0 back to node order, [N, C]
+
+Padding copies (``~slot_mask``) take part in balls like in Erwin; mask them (e.g. with
+``level_mask``) where a statistic must see real nodes only.
+
 Our differences (documented choices):
 
 * Sorting is stable (``argsort``) instead of ``std::nth_element``: ties at a median go by the
@@ -228,28 +240,32 @@ def build_balltree_numpy(
 # ---------------------------------------------------------------- jittable JAX build
 
 
-def _segment_order(x, order, seg, n_seg):
-    """One level of splits: stable sort of ``order`` by (segment, coordinate on the segment's
-    axis of largest spread). ``seg [N]`` non-decreasing segment ids of the positions."""
-    pts = x[order]
-    hi = jax.ops.segment_max(pts, seg, num_segments=n_seg, indices_are_sorted=True)
-    lo = jax.ops.segment_min(pts, seg, num_segments=n_seg, indices_are_sorted=True)
-    dim = jnp.argmax(hi - lo, axis=1)
-    val = jnp.take_along_axis(pts, dim[seg][:, None], axis=1)[:, 0]
-    _, _, order = jax.lax.sort((seg, val, order), num_keys=2, is_stable=True)
-    return order
+def _split_levels(x, order, leaf_seg, n_leaves, levels, first=0):
+    """Levels ``first..levels-1`` of splits in one ``fori_loop`` (one compiled body): at level
+    ``l`` the segment of a position is ``leaf_seg >> (L - l)`` (segments are nested); stable
+    sort of ``order`` by (segment, coordinate on the segment's axis of largest spread)."""
+    depth = int(math.log2(n_leaves))
+
+    def body(lvl, order):
+        seg = jnp.right_shift(leaf_seg, depth - lvl)
+        pts = x[order]
+        kw = dict(num_segments=n_leaves + 1, indices_are_sorted=True)
+        spread = jax.ops.segment_max(pts, seg, **kw) - jax.ops.segment_min(pts, seg, **kw)
+        dim = jnp.argmax(spread, axis=1)
+        val = jnp.take_along_axis(pts, dim[seg][:, None], axis=1)[:, 0]
+        return jax.lax.sort((seg, val, order), num_keys=2, is_stable=True)[2]
+
+    return jax.lax.fori_loop(first, levels, body, order)
 
 
-def _seg_ids(bounds, n_rows):
-    """Segment id of every position ``0..n_rows-1`` given boundaries ``[S+1]`` (last = n)."""
-    marks = jnp.zeros(n_rows + 1, jnp.int32).at[bounds[1:]].add(1)
-    return jnp.cumsum(marks)[:n_rows]
-
-
-def _halve(bounds):
-    mids = (bounds[:-1] + bounds[1:]) // 2
-    inter = jnp.stack([bounds[:-1], mids], axis=1).reshape(-1)
-    return jnp.concatenate([inter, bounds[-1:]])
+def _leaf_bounds(n, n_leaves):
+    """Boundaries ``[n_leaves + 1]`` of the leaves after recursive floor halving of ``n``."""
+    bounds = jnp.stack([jnp.int32(0), n])
+    while bounds.shape[0] < n_leaves + 1:
+        mids = (bounds[:-1] + bounds[1:]) // 2
+        inter = jnp.stack([bounds[:-1], mids], axis=1).reshape(-1)
+        bounds = jnp.concatenate([inter, bounds[-1:]])
+    return bounds
 
 
 def _iota(n):
@@ -259,14 +275,8 @@ def _iota(n):
 def _jax_partition(pts, levels):
     """Erwin's ``partition_ball_tree`` on ``[M, 3]`` (M a power of two), exact halves."""
     m = pts.shape[0]
-    order = jnp.arange(m, dtype=jnp.int32)
-    for lvl in range(levels):
-        blocks = order.reshape(1 << lvl, m >> lvl)
-        p = pts[blocks]
-        dim = jnp.argmax(p.max(axis=1) - p.min(axis=1), axis=1)
-        val = jnp.take_along_axis(p, dim[:, None, None], axis=2)[..., 0]
-        order = jnp.take_along_axis(blocks, jnp.argsort(val, axis=1, stable=True), 1).reshape(-1)
-    return order
+    n_leaves = 1 << levels
+    return _split_levels(pts, _iota(m), _iota(m) // (m // n_leaves), n_leaves, levels)
 
 
 def build_balltree(
@@ -280,9 +290,9 @@ def build_balltree(
 ) -> BallTree:
     """Erwin's ball tree of ``positions`` (and its rotated trees), jittable, static shapes.
 
-    One stable sort per tree level on the whole padded cloud (``log2 P - 1`` sorts) keyed by
-    (segment, coordinate on the segment's widest axis). See the module docstring for the slot
-    layout, the padding rule and the rotated trees.
+    One stable sort per tree level on the whole padded cloud (``log2 P - 1`` sorts, in a
+    ``fori_loop``) keyed by (segment, coordinate on the segment's widest axis). See the module
+    docstring for the slot layout, the padding rule and the rotated trees.
 
     Args:
         positions: ``[N, 3]`` float positions (scaled coordinates).
@@ -303,10 +313,11 @@ def build_balltree(
     m = jnp.ones(n_rows, bool) if mask is None else jnp.asarray(mask, bool)
     n = jnp.sum(m, dtype=jnp.int32)
     order = jnp.argsort(~m, stable=True).astype(jnp.int32)  # real rows first, by index
-    bounds = jnp.stack([jnp.int32(0), n])
-    for lvl in range(int(math.log2(p)) - 1):
-        order = _segment_order(x, order, _seg_ids(bounds, n_rows), (1 << lvl) + 1)
-        bounds = _halve(bounds)
+    n_leaves = p // 2
+    bounds = _leaf_bounds(n, n_leaves)
+    marks = jnp.zeros(n_rows + 1, jnp.int32).at[bounds[1:]].add(1)
+    leaf_seg = jnp.cumsum(marks)[:n_rows]  # leaf of each position (padding: n_leaves)
+    order = _split_levels(x, order, leaf_seg, n_leaves, int(math.log2(n_leaves)))
     counts = bounds[1:] - bounds[:-1]
     starts = bounds[:-1]
     top = jnp.maximum(n - 1, 0)

@@ -33,8 +33,10 @@ class GridSpec:
     The grid's origin is the minimum corner of the real nodes (computed inside jit); cells are
     cubes of side ``cell_size`` and there are ``grid_shape`` cells per axis; coordinates beyond
     the last cell are clamped into it (this only crowds border cells, and crowding is caught
-    by the overflow flag). ``capacity`` bounds the number of nodes in one run of 3 x-consecutive
-    cells.
+    by the overflow flag). A node's candidates are its 9 *runs* (3 x-consecutive cells per
+    (y, z) row around it). Vessel clouds are very uneven (a dense clot inside a sparse wall), so
+    the nodes are split by their largest run: all but ``heavy_nodes`` read ``capacity`` slots
+    per run, the ``heavy_nodes`` nodes with the largest runs read ``heavy_capacity`` slots.
 
     With ``cell_size >= r`` every node within ``r`` is examined (counts exact). With
     ``cell_size < r`` (k-nearest mode, for large radii) only nodes within ``cell_size`` are
@@ -46,12 +48,16 @@ class GridSpec:
     Attributes:
         cell_size: side of a cell (units of the positions).
         grid_shape: ``(nx, ny, nz)`` cells per axis (each >= 1).
-        capacity: slots per run of 3 x-consecutive cells.
+        capacity: slots per run for the light nodes.
+        heavy_capacity: slots per run for the heavy nodes (``>= capacity``).
+        heavy_nodes: number of nodes searched with ``heavy_capacity`` (0: none).
     """
 
     cell_size: float
     grid_shape: tuple[int, int, int]
     capacity: int
+    heavy_capacity: int = 0
+    heavy_nodes: int = 0
 
 
 def _cells(positions, mask, spec):
@@ -79,8 +85,69 @@ def _runs(c, spec, np_mod=jnp):
     return first, last, ok
 
 
+def _query_runs(positions, mask, spec, xp):
+    """Nodes sorted by cell and, per sorted node, its 9 runs as sorted-position ranges."""
+    c, cid = _cells(positions, mask, spec)
+    order = xp.argsort(cid, stable=True).astype(xp.int32)
+    sorted_cid = cid[order]
+    first, last, ok = _runs(c[order], spec, xp)
+    start = xp.searchsorted(sorted_cid, first.reshape(-1), side="left").reshape(first.shape)
+    end = xp.searchsorted(sorted_cid, last.reshape(-1), side="right").reshape(first.shape)
+    live = ok & mask[order][:, None]  # real query and a row inside the grid
+    return order, start.astype(xp.int32), xp.where(live, end, start).astype(xp.int32), live
+
+
+def _search(positions, order, start, end, queries, r, k, loop, cap, cell_size):
+    """K nearest for the sorted-order ``queries [Q]`` reading ``cap`` slots per run."""
+    n = positions.shape[0]
+    r2 = jnp.asarray(r, positions.dtype) ** 2
+    h2 = jnp.asarray(cell_size, positions.dtype) ** 2
+    knn_mode = cell_size < r
+    width = 9 * cap
+    kk = min(k, width)
+    run = np.arange(width) // cap
+    off = jnp.arange(width, dtype=jnp.int32) % cap
+    table = jnp.pad(positions[order], ((0, cap), (0, 0)))
+
+    def one(args):  # one query: sorted position, its own runs [9] as [start, end)
+        q, s, e = args
+        win = jax.vmap(lambda s0: jax.lax.dynamic_slice(table, (s0, 0), (cap, 3)))(s)
+        diff = table[q] - win.reshape(width, 3)
+        d2 = jnp.sum(diff * diff, axis=-1)
+        cand = s[run] + off
+        okc = (cand < e[run]) & (d2 < r2)
+        if knn_mode:  # beyond the cell size a node cannot be among the K nearest (else: miss)
+            okc = okc & (d2 <= h2)
+        if not loop:
+            okc = okc & (cand != q)
+        return jnp.where(okc, -d2, -jnp.inf), cand, jnp.sum(okc, dtype=jnp.int32)
+
+    def tile(args):
+        neg, cand, counts = jax.vmap(one)(args)
+        neg, pos = jax.lax.top_k(neg, kk)
+        found = jnp.isfinite(neg)
+        ids = jnp.where(found, order[jnp.take_along_axis(cand, pos, 1) % n], n)
+        real = args[2][:, 0] >= 0
+        miss = real & ((kk < k) | ~found[:, kk - 1]) if knn_mode else jnp.zeros_like(real)
+        return ids.astype(jnp.int32), counts, miss
+
+    t = max(1, min(queries.shape[0], _TILE_ELEMENTS // width))
+    pad = (-queries.shape[0]) % t
+    qs = jnp.pad(queries, (0, pad))
+    xs = (qs, jnp.pad(start[queries], ((0, pad), (0, 0))),
+          jnp.pad(end[queries], ((0, pad), (0, 0)), constant_values=-1))
+    xs = tuple(a.reshape((-1, t) + a.shape[1:]) for a in xs)
+    ids, counts, miss = jax.lax.map(tile, xs)
+    q = queries.shape[0]
+    return ids.reshape(-1, kk)[:q], counts.reshape(-1)[:q], jnp.any(miss)
+
+
 def grid_search(positions, r, k, mask, loop, spec: GridSpec):
     """Jittable grid search; see :func:`thrombojax.graph.radius_graph` for the conventions.
+
+    Nodes are sorted by cell; each query gathers its 9 runs as contiguous windows of the sorted
+    cloud. Queries are ordered by their largest run: the light ones read ``spec.capacity``
+    slots per run, the last ``spec.heavy_nodes`` read ``spec.heavy_capacity``.
 
     Args:
         positions: ``[N, 3]``; r, k: radius and cap; mask: ``[N]`` bool; loop: keep ``i -> i``.
@@ -91,68 +158,33 @@ def grid_search(positions, r, k, mask, loop, spec: GridSpec):
         ``overflow []`` bool.
     """
     n = positions.shape[0]
-    cap = spec.capacity
-    c, cid = _cells(positions, mask, spec)
-    order = jnp.argsort(cid).astype(jnp.int32)
-    sorted_cid = cid[order]
-    first, last, ok = _runs(c, spec)
-    start = jnp.searchsorted(sorted_cid, first, side="left").astype(jnp.int32)
-    end = jnp.searchsorted(sorted_cid, last, side="right").astype(jnp.int32)
-    end = jnp.where(ok, end, start)
-    run_overflow = jnp.any(mask[:, None] & (end - start > cap))
-    r2 = jnp.asarray(r, positions.dtype) ** 2
-    h2 = jnp.asarray(spec.cell_size, positions.dtype) ** 2
-    knn_mode = spec.cell_size < r
-    width = 9 * cap
-    kk = min(k, width)
-    t = max(1, min(n, _TILE_ELEMENTS // width))
-    n_tiles = -(-n // t)
-    pad = n_tiles * t - n
-    run = jnp.arange(width, dtype=jnp.int32) // cap
-    off = jnp.arange(width, dtype=jnp.int32) % cap
-    # everything below works on nodes sorted by cell: candidates are contiguous windows
-    table = jnp.pad(positions[order], ((0, cap), (0, 0)))
-
-    def windows(starts):  # [9] -> [9, cap, 3]
-        return jax.vmap(lambda s0: jax.lax.dynamic_slice(table, (s0, 0), (cap, 3)))(starts)
-
-    def tile(args):
-        qpos, xq, real, s, e = args  # sorted positions [T], coords [T, 3], [T], runs [T, 9]
-        xc = jax.vmap(windows)(s).reshape(-1, width, 3)
-        diff = xq[:, None, :] - xc
-        d2 = jnp.sum(diff * diff, axis=-1)
-        cand = s[:, run] + off[None, :]
-        okc = (cand < e[:, run]) & real[:, None] & (d2 < r2)
-        if knn_mode:  # beyond the cell size a node cannot be among the K nearest (else: miss)
-            okc = okc & (d2 <= h2)
-        if not loop:
-            okc = okc & (cand != qpos[:, None])
-        neg, pos = jax.lax.top_k(jnp.where(okc, -d2, -jnp.inf), kk)
-        found = jnp.isfinite(neg)
-        ids = jnp.where(found, order[jnp.take_along_axis(cand, pos, 1) % n], n)
-        miss = jnp.zeros(qpos.shape, bool)
-        if knn_mode:  # exact only if the k-th neighbour lies within the cell size
-            miss = real & ((kk < k) | ~found[:, kk - 1])
-        return ids.astype(jnp.int32), jnp.sum(okc, 1, dtype=jnp.int32), miss
-
-    def tiled(a, fill=0):
-        a = jnp.pad(a, ((0, pad),) + ((0, 0),) * (a.ndim - 1), constant_values=fill)
-        return a.reshape((n_tiles, t) + a.shape[1:])
-
-    xs = (
-        tiled(jnp.arange(n, dtype=jnp.int32)),
-        tiled(table[:n]),
-        tiled(mask[order], False),
-        tiled(start[order]),
-        tiled(end[order]),
+    order, start, end, live = _query_runs(positions, mask, spec, jnp)
+    real = mask[order]
+    end = jnp.where(real[:, None], end, -1)  # padded queries: no candidates
+    weight = jnp.max(jnp.where(live, end - start, 0), axis=1)
+    n_heavy = min(spec.heavy_nodes, n) if spec.heavy_capacity > spec.capacity else 0
+    by_weight = jnp.argsort(weight, stable=True).astype(jnp.int32)
+    light, heavy = by_weight[: n - n_heavy], by_weight[n - n_heavy :]
+    overflow = jnp.any(weight[light] > spec.capacity)
+    ids, counts, miss = _search(
+        positions, order, start, end, light, r, k, loop, spec.capacity, spec.cell_size
     )
-    ids, counts, miss = jax.lax.map(tile, xs)
-    ids = ids.reshape(-1, kk)[:n]
-    if kk < k:
-        ids = jnp.pad(ids, ((0, 0), (0, k - kk)), constant_values=n)
-    indices = jnp.zeros((n, k), jnp.int32).at[order].set(ids)
-    counts = jnp.zeros((n,), jnp.int32).at[order].set(counts.reshape(-1)[:n])
-    return indices, counts, run_overflow | jnp.any(miss)
+    if n_heavy:
+        overflow |= jnp.any(weight[heavy] > spec.heavy_capacity)
+        ids_h, counts_h, miss_h = _search(
+            positions, order, start, end, heavy, r, k, loop, spec.heavy_capacity, spec.cell_size
+        )
+        ids = jnp.concatenate([ids, ids_h])
+        counts = jnp.concatenate([counts, counts_h])
+        miss |= miss_h
+    node = order[by_weight]  # node id of each processed query
+    indices = jnp.zeros((n, k), jnp.int32).at[node].set(_pad_cols(ids, k, n))
+    return indices, jnp.zeros((n,), jnp.int32).at[node].set(counts), overflow | miss
+
+
+def _pad_cols(ids, k, n):
+    return ids if ids.shape[1] == k else jnp.pad(ids, ((0, 0), (0, k - ids.shape[1])),
+                                                 constant_values=n)
 
 
 def _kth_distance(points: np.ndarray, r: float, k: int, loop: bool) -> np.ndarray:
@@ -179,8 +211,8 @@ def estimate_capacity(
     The cell size is ``r`` unless every real node of every frame has its ``max_neighbors``-th
     neighbour within ``r / margin``: then k-nearest mode with ``cell_size = margin * max`` of
     those distances (smaller cells, fewer candidates). The grid spans the largest extent seen
-    times ``margin``; the capacity is ``margin`` times the fullest run, rounded up to
-    ``multiple``.
+    times ``margin``. Capacities are ``margin`` times the run sizes seen, rounded up to
+    ``multiple``; the light / heavy split minimises the number of candidates examined.
 
     Args:
         positions: ``[N, 3]`` or ``[F, N, 3]`` example frames.
@@ -204,21 +236,32 @@ def estimate_capacity(
     extent = max(float(np.max(p.max(0) - p.min(0))) for p in pts)
     n_cells = max(1, math.ceil(margin * extent / cell_size) + 1)
     spec = GridSpec(float(cell_size), (n_cells,) * 3, 1)
-    fullest = 1
+    weights = []
     for f, m in zip(frames, masks, strict=True):
-        c, cid = _cells(f, m, spec)
-        first, last, ok = _runs(c, spec, np)
-        s = np.sort(cid)
-        lens = np.searchsorted(s, last, "right") - np.searchsorted(s, first, "left")
-        fullest = max(fullest, int(np.max(np.where(ok & m[:, None], lens, 0))))
-    cap = multiple * math.ceil(margin * fullest / multiple)
-    return dataclasses.replace(spec, capacity=min(cap, multiple * math.ceil(len(f) / multiple)))
+        _, start, end, live = _query_runs(f, m, spec, np)
+        weights.append(np.sort(np.max(np.where(live, end - start, 0), axis=1)))
+    n = frames.shape[1]
+
+    def rounded(v):
+        return max(multiple, multiple * math.ceil(margin * v / multiple))
+
+    best = None
+    for frac in (0.0, 0.01, 0.02, 0.05, 0.1, 0.2, 0.3, 0.5):
+        n_heavy = min(n, math.ceil(margin * frac * n))
+        light = rounded(max(int(w[max(0, n - n_heavy - 1)]) for w in weights))
+        heavy = rounded(max(int(w[-1]) for w in weights))
+        cost = (n - n_heavy) * light + n_heavy * heavy
+        if best is None or cost < best[0]:
+            best = (cost, light, heavy if n_heavy else 0, n_heavy)
+    return dataclasses.replace(spec, capacity=best[1], heavy_capacity=best[2], heavy_nodes=best[3])
 
 
 def grow(spec: GridSpec, r: float, factor: float = 2.0) -> GridSpec:
-    """A larger spec after an overflow: more capacity, and in k-nearest mode larger cells."""
+    """A larger spec after an overflow: more capacity and heavy nodes, and in k-nearest mode
+    larger cells."""
     cell = min(r, spec.cell_size * factor ** (1 / 3)) if spec.cell_size < r else spec.cell_size
     scale = cell / spec.cell_size
     shape = tuple(max(1, math.ceil(g / scale) + 1) for g in spec.grid_shape)
     cap = int(math.ceil(spec.capacity * factor * scale**3))
-    return GridSpec(cell, shape, cap)
+    heavy = int(math.ceil(max(spec.heavy_capacity, spec.capacity) * factor * scale**3))
+    return GridSpec(cell, shape, cap, heavy, max(1, int(math.ceil(spec.heavy_nodes * factor))))

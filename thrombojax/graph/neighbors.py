@@ -3,8 +3,9 @@
 Conventions (every model relies on them):
 
 * ``NeighborList.indices[i]`` lists the neighbours ``j`` of node ``i``: the ``K = max_neighbors``
-  *nearest* nodes with ``|x_i - x_j| < r`` (strict), sorted by distance, nearest first (ties: lower
-  index first). Empty slots hold the sentinel ``N`` (``N`` = number of rows, padding included).
+  *nearest* nodes with ``|x_i - x_j| < r`` (strict), sorted by distance, nearest first (exact
+  ties: lower index first for the dense method, cell order for the grid). Empty slots hold the
+  sentinel ``N`` (``N`` = number of rows, padding included).
 * Cap semantics: like torch_cluster's ``max_num_neighbors`` a node keeps at most ``K`` neighbours,
   but torch_cluster keeps the *first K found* (search order) while we keep the *K nearest*. The
   cap is the model's definition, not an error: ``counts`` tells how many there were before it.
@@ -21,8 +22,11 @@ Conventions (every model relies on them):
 Methods: ``"dense"`` compares each row tile with all nodes (``lax.map`` over tiles of
 ``tile_rows`` rows, ``lax.top_k`` per tile; peak memory ``tile_rows x N``, never ``N x N``);
 ``"grid"`` hashes nodes into cells (see :class:`GridSpec`) and compares each node with the nodes
-of its 27 surrounding cells only; ``"auto"`` picks ``"grid"`` when a :class:`GridSpec` is given
-and ``N >= AUTO_GRID_MIN_NODES``, else ``"dense"``.
+of its 27 surrounding cells only; ``"auto"`` picks ``"grid"`` when a :class:`GridSpec` is given,
+``N >= AUTO_GRID_MIN_NODES`` and the grid examines at most half as many candidates as the dense
+method (about ``9 * capacity`` per node against ``N``), else ``"dense"``. Measured on this CPU
+(``benchmarks/graphs.py``): at N = 2,048 with the study's radii the dense method wins; at
+N = 27,000 the grid does.
 """
 
 from __future__ import annotations
@@ -52,8 +56,8 @@ __all__ = [
     "to_graphs_tuple",
 ]
 
-AUTO_GRID_MIN_NODES: int = 8192
-"""``method="auto"`` uses the grid (when a spec is given) from this many nodes on (measured)."""
+AUTO_GRID_MIN_NODES: int = 4096
+"""``method="auto"`` uses the grid only from this many nodes on (below, dense is as fast)."""
 
 _TILE_ELEMENTS = 1 << 21  # dense method: rows per tile chosen so that tile_rows * N <= this
 
@@ -81,13 +85,20 @@ class NeighborList:
         return self.indices.shape[-1]
 
 
+def _grid_pays(grid: GridSpec | None, n: int) -> bool:
+    """The grid is worth it when it examines at most half the candidates of the dense method."""
+    if grid is None or n < AUTO_GRID_MIN_NODES:
+        return False
+    h = min(grid.heavy_nodes, n) if grid.heavy_capacity > grid.capacity else 0
+    return 9 * ((n - h) * grid.capacity + h * grid.heavy_capacity) <= n * n // 2
+
+
 def _select_k(d2, cand, k, sentinel):
-    """K smallest of ``d2 [T, M]`` -> candidate ids ``[T, K]`` nearest first, sentinel if inf."""
+    """K smallest of ``d2 [T, M]`` -> ``cand [M]`` ids ``[T, K]`` nearest first, sentinel if inf."""
     m = d2.shape[-1]
     kk = min(k, m)
     neg, pos = jax.lax.top_k(-d2, kk)
-    ids = jnp.take_along_axis(cand, pos, axis=-1) if cand.ndim == 2 else cand[pos]
-    ids = jnp.where(jnp.isfinite(neg), ids, sentinel).astype(jnp.int32)
+    ids = jnp.where(jnp.isfinite(neg), cand[pos], sentinel).astype(jnp.int32)
     if kk < k:
         ids = jnp.pad(ids, ((0, 0), (0, k - kk)), constant_values=sentinel)
     return ids
@@ -158,7 +169,7 @@ def radius_graph(
         mask = jnp.ones((n,), bool)
     mask = jnp.asarray(mask, bool)
     if method == "auto":
-        method = "grid" if (grid is not None and n >= AUTO_GRID_MIN_NODES) else "dense"
+        method = "grid" if _grid_pays(grid, n) else "dense"
     if method == "dense":
         return _dense(positions, r, max_neighbors, mask, loop, tile_rows)
     if method == "grid":
@@ -318,7 +329,7 @@ def allocate(
         positions: ``[N, 3]`` or ``[F, N, 3]`` example frames (the graph is built for the last).
         r, max_neighbors, mask, loop: as in :func:`radius_graph`.
         method: ``"dense"`` needs no spec (returns ``None``); ``"grid"`` always sizes one;
-            ``"auto"`` sizes one when ``N >= AUTO_GRID_MIN_NODES``.
+            ``"auto"`` sizes one when ``N >= AUTO_GRID_MIN_NODES`` and keeps it if it pays.
         margin: safety factor of :func:`estimate_capacity`.
 
     Returns:
@@ -329,6 +340,7 @@ def allocate(
     grid = None
     if method == "grid" or (method == "auto" and n >= AUTO_GRID_MIN_NODES):
         grid = estimate_capacity(frames, r, max_neighbors, mask=mask, loop=loop, margin=margin)
+        grid = grid if method == "grid" or _grid_pays(grid, n) else None
     last = frames if frames.ndim == 2 else frames[-1]
     last_mask = None if mask is None else np.asarray(mask).reshape(-1, n)[-1]
     return radius_graph_checked(

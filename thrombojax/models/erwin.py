@@ -20,19 +20,25 @@ Blocks with odd index inside a layer run on the rotated tree (points rotated 45 
 tree is built) to mix information across balls, as in the official code.
 
 Conventions where the references disagree or our setting differs (documented choices):
-- Widths double per level: ``c_l = hidden * prod(strides[:l])`` as in the official code where
-  ``c_hidden`` is an int (the thesis gives one "hidden dimension 32": 32, 64, 128, 256).
-- Pooling/unpooling normalisation: the official code uses BatchNorm1d, whose batch statistics
-  would mix samples, padding and train/eval modes. We use a per-node LayerNorm (eps 1e-5, the
-  BatchNorm default eps) instead: jittable, single-sample and independent of padding.
-- Padding (mask False nodes and the tree's virtual leaves) never reaches a real node: padded keys
-  are masked out of attention, ball centres and pooled features use only real children, and
-  a pooled node is real if any child is. (The official code instead duplicates real points
-  into the virtual leaves and lets them attend; ball centres there are duplicate-weighted means.)
-- Ball sizes are clipped to the number of tree nodes at a level (static), so tiny clouds work.
+- Widths: ``c_l = hidden * prod(strides[:l])`` (32, 64, 128, 256; the official README and the
+  pre-May-2025 int ``c_hidden``; ~20.3 M parameters). The thesis prints one "hidden dimension
+  32" while the official code it used takes a list; ``ErwinConfig.widen=False`` keeps 32.
+- Pooling/unpooling norm: the official BatchNorm1d mixes samples (and padding) in its batch
+  statistics and differs in train/eval; we use a per-node LayerNorm (eps 1e-5, BatchNorm's).
+- Padding never reaches a real node: padded rows (mask False) enter neither tree nor graph; the
+  tree's padding copies start from zero features and are masked out of attention keys, ball
+  centres and pooled features (the official code lets its duplicate points attend). A coarse
+  node is real if any child is. Real outputs are exactly invariant to padding rows as long as
+  they do not change the tree's slot count ``2**ceil(log2 N)`` (it sets the tree's layout).
+- Permuting the nodes permutes the outputs, up to ties in the median splits (stable sort by
+  current order) and float summation order.
+- Embedding: one Dense from the 5 features to ``c_0`` then the MPNN (the official wrapper's two
+  stacked Linear layers compose to one), self loops included as ``radius_graph(loop=True)``.
+- Ball sizes are clipped to the level size (static), so tiny clouds work.
 - Positions carry no gradient (the official code wraps them in ``no_grad``).
-- GELU in the head is the exact (erf) form, as torch's default; RMSNorm from ``layers``.
-- Dense kernels use a truncated normal with std 0.02 and zero bias, as the official code.
+- Blocks are scanned in pairs (``nn.scan``): compile time does not grow with depth.
+- Head GELU is exact (erf); Dense kernels in this file use truncated normal std 0.02 and zero
+  bias as the official code (the shared MPNN embedding keeps Flax defaults).
 """
 
 from __future__ import annotations
@@ -67,12 +73,8 @@ _MASKED = -1e9  # additive logit for padded keys (finite, so an all-padding ball
 
 
 def _dense(features: int, name: str | None = None) -> nn.Dense:
-    return nn.Dense(
-        features,
-        kernel_init=nn.initializers.truncated_normal(0.02),
-        bias_init=nn.initializers.zeros,
-        name=name,
-    )
+    """Dense with the official init: truncated-normal (std 0.02) kernel, zero bias."""
+    return nn.Dense(features, kernel_init=nn.initializers.truncated_normal(0.02), name=name)
 
 
 @struct.dataclass
@@ -189,10 +191,9 @@ class _BlockPair(nn.Module):
 
     @nn.compact
     def __call__(self, x, pos, valid, rot, inv):
-        x = ErwinBlock(self.dim, self.num_heads, self.ball_size, self.mlp_ratio, name="plain")(
-            x, pos, valid
-        )
-        second = ErwinBlock(self.dim, self.num_heads, self.ball_size, self.mlp_ratio, name="rot")
+        args = (self.dim, self.num_heads, self.ball_size, self.mlp_ratio)
+        x = ErwinBlock(*args, name="plain")(x, pos, valid)
+        second = ErwinBlock(*args, name="rot")
         if self.rotate:
             return second(x[rot], pos[rot], valid[rot])[inv], None
         return second(x, pos, valid), None
@@ -215,19 +216,13 @@ class _Stage(nn.Module):
     @nn.compact
     def __call__(self, x, pos, valid, rot, inv):
         """``x [M, C]``, ``pos [M, 3]``, ``valid [M]``; ``rot``/``inv`` ``[M]`` rotated order."""
+        args = (self.dim, self.num_heads, self.ball_size, self.mlp_ratio)
         if self.depth // 2:
-            pairs = nn.scan(
-                _BlockPair, variable_axes={"params": 0}, split_rngs={"params": True},
-                in_axes=nn.broadcast, length=self.depth // 2,
-            )
-            x, _ = pairs(
-                self.dim, self.num_heads, self.ball_size, self.mlp_ratio, self.rotate,
-                name="pairs",
-            )(x, pos, valid, rot, inv)
+            pairs = nn.scan(_BlockPair, variable_axes={"params": 0}, split_rngs={"params": True},
+                            in_axes=nn.broadcast, length=self.depth // 2)
+            x, _ = pairs(*args, self.rotate, name="pairs")(x, pos, valid, rot, inv)
         if self.depth % 2:
-            x = ErwinBlock(self.dim, self.num_heads, self.ball_size, self.mlp_ratio, name="last")(
-                x, pos, valid
-            )
+            x = ErwinBlock(*args, name="last")(x, pos, valid)
         return x
 
 
@@ -242,10 +237,8 @@ class _Pool(nn.Module):
         s = self.stride
         xb, pb, vb = _ball_view(x, s), _ball_view(pos, s), _ball_view(valid, s)
         centres, w = _masked_centres(pb, vb)
-        feats = jnp.concatenate(
-            [(xb * w).reshape(xb.shape[0], -1), ((pb - centres) * w).reshape(xb.shape[0], -1)],
-            axis=-1,
-        )
+        rel = ((pb - centres) * w).reshape(xb.shape[0], -1)
+        feats = jnp.concatenate([(xb * w).reshape(xb.shape[0], -1), rel], axis=-1)
         out = nn.LayerNorm(epsilon=1e-5, name="norm")(_dense(self.out_dim, "proj")(feats))
         return out, centres[:, 0], vb.any(axis=1)
 
@@ -294,6 +287,23 @@ class ErwinNet(nn.Module):
     mp_steps: int = 3
     out_dim: int = 3
 
+    def _check(self, dims, sizes, balls, n_rot):
+        """Raise :class:`ConfigError` on inconsistent lengths, ball sizes or head counts."""
+        n = len(self.enc_depths)
+        if {len(self.enc_heads), len(self.ball_sizes), len(self.strides) + 1,
+                len(self.dec_heads) + 1, len(self.dec_depths) + 1} != {n}:
+            raise ConfigError(f"erwin: enc_heads/enc_depths/ball_sizes need {n} entries and "
+                              f"dec_heads/dec_depths/strides {n - 1}")
+        if self.rotate and n_rot != n:
+            raise ConfigError(f"erwin: rotate needs {n} rotated tree orderings, got {n_rot}")
+        heads = tuple(zip(self.enc_heads, (*self.dec_heads, self.enc_heads[-1]), strict=True))
+        for lvl in range(n):
+            if sizes[lvl] % balls[lvl] or any(dims[lvl] % h for h in heads[lvl]):
+                raise ConfigError(
+                    f"erwin: level {lvl}: ball size {balls[lvl]} must divide the {sizes[lvl]} "
+                    f"tree nodes and heads {heads[lvl]} the width {dims[lvl]}"
+                )
+
     @nn.compact
     def __call__(
         self, features: jax.Array, positions: jax.Array, graph: ErwinGraph
@@ -308,24 +318,12 @@ class ErwinNet(nn.Module):
             ``[n, out_dim]``; padded rows (outside the tree) hold arbitrary finite values.
         """
         n_levels = len(self.enc_depths)
-        lengths = {len(self.enc_heads), len(self.ball_sizes), len(self.strides) + 1,
-                   len(self.dec_heads) + 1, len(self.dec_depths) + 1}
-        if lengths != {n_levels}:
-            raise ConfigError(
-                f"erwin: enc_heads/enc_depths/ball_sizes need {n_levels} entries and "
-                f"dec_heads/dec_depths/strides {n_levels - 1}"
-            )
         dims = [self.hidden * (math.prod(self.strides[:i]) if self.widen else 1)
                 for i in range(n_levels)]
         tree = graph.tree
         sizes = level_sizes(tree.perm.shape[0], tuple(self.strides))
-        balls = [min(b, s) for b, s in zip(self.ball_sizes, sizes, strict=True)]
-        for lvl, (b, size) in enumerate(zip(balls, sizes, strict=True)):
-            if size % b or dims[lvl] % self.enc_heads[lvl]:
-                raise ConfigError(
-                    f"erwin: level {lvl}: ball size {b} must divide the {size} tree nodes and "
-                    f"heads {self.enc_heads[lvl]} the width {dims[lvl]}"
-                )
+        balls = [min(b, s) for b, s in zip(self.ball_sizes, sizes, strict=False)]
+        self._check(dims, sizes, balls, len(tree.rot_perm))
         pos = jax.lax.stop_gradient(positions)
 
         h = MPNNEmbedding(dims[0], self.mp_steps, name="embed")(
@@ -334,8 +332,6 @@ class ErwinNet(nn.Module):
         valid = tree.slot_mask
         x = jnp.where(valid[:, None], h[tree.perm], 0.0)  # padding copies start from zero
         p = pos[tree.perm]  # padding copies sit on the real point they copy (finite)
-        if self.rotate and len(tree.rot_perm) != n_levels:
-            raise ValueError(f"rotate needs {n_levels} rotated orderings, got {len(tree.rot_perm)}")
         rots = tree.rot_perm if self.rotate else (None,) * n_levels
         invs = tree.rot_inverse if self.rotate else (None,) * n_levels
 

@@ -10,8 +10,8 @@ batch with ``jax.vmap``) and all jittable with the surrogate as a static argumen
 
 ``out`` is the normalised acceleration ``(a - mean) / std`` (:class:`thrombojax.types.TargetStats`);
 padded nodes' outputs are finite but arbitrary and must be masked downstream. ``graph`` is a pytree
-with a scalar bool field ``overflow`` that the caller checks on the host (a neighbour list that
-hit its capacity is re-allocated, never silently truncated).
+with a scalar bool field ``overflow`` that the caller checks on the host (a fixed search buffer
+overflowed: re-allocate, never truncate silently; the per-node neighbour cap is not an overflow).
 
 Config defaults are the study's hyper-parameters (thesis appendix, ``PAPER.md``); each config also
 carries the training ``batch_size`` and ``learning_rate`` the study used with it.
@@ -36,26 +36,11 @@ from thrombojax.errors import ConfigError
 from thrombojax.types import ModelInput, TargetStats
 
 __all__ = [
-    "MeshGraphNetConfig",
-    "TransolverConfig",
-    "ErwinConfig",
-    "ConstantVelocityConfig",
-    "Surrogate",
-    "FlaxSurrogate",
-    "ConstantVelocity",
-    "EmptyGraph",
-    "ModelSpec",
-    "MODEL_SPECS",
-    "MODEL_NAMES",
-    "ALIASES",
-    "canonical_name",
-    "get_config",
-    "create_model",
-    "config_to_dict",
-    "config_from_dict",
-    "count_params",
-    "identity_stats",
-]
+    "MeshGraphNetConfig", "TransolverConfig", "ErwinConfig", "ConstantVelocityConfig",
+    "Surrogate", "FlaxSurrogate", "ConstantVelocity", "EmptyGraph", "ModelSpec",
+    "MODEL_SPECS", "MODEL_NAMES", "ALIASES", "canonical_name", "get_config", "create_model",
+    "config_to_dict", "config_from_dict", "count_params", "identity_stats",
+]  # fmt: skip
 
 
 # ---- configs ------------------------------------------------------------------------------
@@ -214,18 +199,9 @@ class Surrogate(Protocol):
     config: Any
 
     def build_graph(self, inputs: ModelInput) -> Any: ...
-
     def init(self, rng: jax.Array, inputs: ModelInput, graph: Any) -> dict: ...
-
-    def apply(
-        self,
-        params: dict,
-        inputs: ModelInput,
-        graph: Any,
-        *,
-        train: bool = False,
-        rng: jax.Array | None = None,
-    ) -> jax.Array: ...
+    def apply(self, params: dict, inputs: ModelInput, graph: Any, *, train: bool = False,
+              rng: jax.Array | None = None) -> jax.Array: ...
 
 
 @dataclasses.dataclass(frozen=True)
@@ -258,27 +234,16 @@ class FlaxSurrogate:
         """Radius graph of the real nodes: a ``NeighborList`` (``indices [N, K]``, ``overflow``)."""
         from thrombojax.graph.neighbors import radius_graph
 
-        return radius_graph(
-            inputs.positions,
-            self.config.radius,
-            self.config.max_neighbors,
-            mask=inputs.mask,
-            loop=self.self_loops,
-        )
+        cfg = self.config
+        return radius_graph(inputs.positions, cfg.radius, cfg.max_neighbors, mask=inputs.mask,
+                            loop=self.self_loops)
 
     def init(self, rng: jax.Array, inputs: ModelInput, graph: Any) -> dict:
         """Initialise the variables ``{"params": ...}`` (compiled: faster than eager Flax init)."""
         return _init_flax(self, rng, inputs, graph)
 
-    def apply(
-        self,
-        params: dict,
-        inputs: ModelInput,
-        graph: Any,
-        *,
-        train: bool = False,
-        rng: jax.Array | None = None,
-    ) -> jax.Array:
+    def apply(self, params: dict, inputs: ModelInput, graph: Any, *, train: bool = False,
+              rng: jax.Array | None = None) -> jax.Array:
         """Normalised acceleration ``[n_nodes, 3]``; ``rng`` is needed to train with dropout."""
         if train and rng is None and getattr(self.config, "dropout", 0.0) > 0.0:
             raise ConfigError(f"model '{self.name}': apply(train=True) uses dropout and needs rng")
@@ -319,15 +284,8 @@ class ConstantVelocity:
     def init(self, rng: jax.Array, inputs: ModelInput, graph: Any) -> dict:
         return {}
 
-    def apply(
-        self,
-        params: dict,
-        inputs: ModelInput,
-        graph: Any,
-        *,
-        train: bool = False,
-        rng: jax.Array | None = None,
-    ) -> jax.Array:
+    def apply(self, params: dict, inputs: ModelInput, graph: Any, *, train: bool = False,
+              rng: jax.Array | None = None) -> jax.Array:
         return jnp.zeros_like(inputs.velocity)
 
 
@@ -354,12 +312,11 @@ class ModelSpec:
     surrogate: str
 
 
+_PKG = "thrombojax.models"
 MODEL_SPECS: dict[str, ModelSpec] = {
-    "mgn": ModelSpec(MeshGraphNetConfig, "thrombojax.models.meshgraphnet", "MeshGraphNetSurrogate"),
-    "transolver": ModelSpec(
-        TransolverConfig, "thrombojax.models.transolver", "TransolverSurrogate"
-    ),
-    "erwin": ModelSpec(ErwinConfig, "thrombojax.models.erwin", "ErwinSurrogate"),
+    "mgn": ModelSpec(MeshGraphNetConfig, f"{_PKG}.meshgraphnet", "MeshGraphNetSurrogate"),
+    "transolver": ModelSpec(TransolverConfig, f"{_PKG}.transolver", "TransolverSurrogate"),
+    "erwin": ModelSpec(ErwinConfig, f"{_PKG}.erwin", "ErwinSurrogate"),
     "constant_velocity": ModelSpec(ConstantVelocityConfig, __name__, "ConstantVelocity"),
 }
 MODEL_NAMES: tuple[str, ...] = tuple(MODEL_SPECS)
@@ -376,19 +333,13 @@ def canonical_name(name: str) -> str:
 
 
 def _coerce(config_cls: type, values: dict, name: str) -> dict:
-    fields = {f.name: f for f in dataclasses.fields(config_cls)}
-    unknown = sorted(set(values) - set(fields))
-    if unknown:
-        raise ConfigError(
-            f"model '{name}': unknown config field(s) {unknown}; known: {sorted(fields)}"
-        )
+    """Check field names; JSON lists become tuples where the field is a tuple."""
+    fields = sorted(f.name for f in dataclasses.fields(config_cls))
+    if unknown := sorted(set(values) - set(fields)):
+        raise ConfigError(f"model '{name}': unknown config field(s) {unknown}; known: {fields}")
     defaults = config_cls()
-    out = {}
-    for key, value in values.items():
-        if isinstance(getattr(defaults, key), tuple) and not isinstance(value, tuple):
-            value = tuple(value)
-        out[key] = value
-    return out
+    return {k: tuple(v) if isinstance(getattr(defaults, k), tuple) else v
+            for k, v in values.items()}
 
 
 def get_config(name: str, *, tiny: bool = False, **overrides: Any) -> Any:
@@ -421,18 +372,16 @@ def create_model(name: str, config: Any = None) -> Surrogate:
     if config is None:
         config = spec.config_cls()
     if not isinstance(config, spec.config_cls):
-        raise ConfigError(
-            f"model '{key}' needs a {spec.config_cls.__name__}, got {type(config).__name__}"
-        )
+        want, got = spec.config_cls.__name__, type(config).__name__
+        raise ConfigError(f"model '{key}' needs a {want}, got {got}")
     cls = getattr(importlib.import_module(spec.module), spec.surrogate)
     return cls(name=key, config=config)
 
 
 def config_to_dict(config: Any) -> dict:
     """JSON-ready dict of a config (tuples become lists)."""
-    return {
-        k: list(v) if isinstance(v, tuple) else v for k, v in dataclasses.asdict(config).items()
-    }
+    items = dataclasses.asdict(config).items()
+    return {k: list(v) if isinstance(v, tuple) else v for k, v in items}
 
 
 def config_from_dict(name: str, d: dict) -> Any:

@@ -11,8 +11,8 @@ stretch ``oversize^2`` and free ends presses on the wall with ``p = mu (oversize
 oversize^-2)``. The penalty stiffness per unit area is ``max(p, min_contact_pressure E) /
 (penetration_target r)`` (the floor covers the extra pressure in bends); the
 friction that holds the clot, per unit mass, is ``g_hold = 2 friction p / r`` (lateral area over
-volume of a cylinder). The final drive is ``drive_ratio * g_hold``, and the mass damping
-``alpha = drive / flow_speed`` (at least ``min_alpha``), so a clot that slides free moves at
+volume of a cylinder). The final drive is ``max(drive_ratio * g_hold, min_alpha * flow_speed)``
+and the mass damping ``alpha = drive / flow_speed``, so a clot that slides free moves at
 ``flow_speed``: the drive and the damping together act as the drag of an aspiration flow.
 """
 
@@ -119,8 +119,8 @@ def build_case(preset: Preset, index: int, seed: int) -> Case:
         preset.penetration_target * r_ref
     )
     g_hold = 2.0 * drawn["friction"] * pressure / r_ref
-    drive = drawn["drive_ratio"] * g_hold
-    alpha = max(drive / drawn["flow_speed"], preset.min_alpha)
+    drive = max(drawn["drive_ratio"] * g_hold, preset.min_alpha * drawn["flow_speed"])
+    alpha = drive / drawn["flow_speed"]
     ref = reference_data(rest, tets)
     f = lambda a: jnp.asarray(np.asarray(a, np.float64))  # noqa: E731 (x64-aware dtype)
     params = CaseParams(
@@ -132,8 +132,10 @@ def build_case(preset: Preset, index: int, seed: int) -> Case:
         ramp_time=f(preset.ramp_time), alpha=f(alpha), dt=f(0.0),
         exit_margin=f(preset.exit_margin), pen_cap=f(preset.penetration_cap),
     )  # fmt: skip
-    dt = stable_dt(params, jnp.asarray(tets), safety=preset.safety, beta=preset.beta)
+    dt = stable_dt(params, jnp.asarray(tets), safety=preset.safety, elem_bulk=preset.elem_bulk)
     params = params.replace(dt=dt)
+    h_min = float(min(clotmesh.tet_min_heights(rest, tets).min(),
+                      clotmesh.tet_min_heights(x0, tets).min()))  # fmt: skip
     wall_pts, wall_cells = geo.wall_mesh(cl, preset.wall_rings, preset.wall_around)
     rotation_deg = float(index * preset.rotation_step_deg) if preset.kind == "bend" else 0.0
     attrs = {
@@ -144,6 +146,7 @@ def build_case(preset: Preset, index: int, seed: int) -> Case:
         "drive": drive, "damping_alpha": alpha, "contact_pressure_estimate": pressure,
         "contact_stiffness": k_contact,
         "shear_modulus": mu, "bulk_modulus": kappa, "substep_dt": float(params.dt),
+        "substep_dt_wave_estimate": h_min / np.sqrt(kappa + 4.0 * mu / 3.0),
     }  # fmt: skip
     return Case(
         index=int(index), params=params, centreline=cl, tets=tets, wall_points=wall_pts,

@@ -26,7 +26,7 @@ from thrombojax.sim.presets import Preset, get_preset
 from thrombojax.sim.solver import RunResult, run, run_batch
 from thrombojax.types import NodeType
 
-__all__ = ["simulate", "simulate_cases", "generate_dataset", "resample", "SOURCE"]
+__all__ = ["simulate", "simulate_cases", "compile_cases", "generate_dataset", "resample", "SOURCE"]
 
 SOURCE = "thrombojax.sim (explicit FEM, JAX)"
 
@@ -81,6 +81,7 @@ def _to_simulation(preset: Preset, case: Case, res: RunResult, wall_time: float)
         "min_J": float(j.min()),
         "max_penetration_rel": float(res.max_penetration),
         "travel_clot_lengths": travel / preset.clot_length,
+        "kinetic_to_elastic": float(ke[moving].sum() / max(ee[moving].sum(), 1e-30)),
         "max_kinetic_to_elastic": float(np.max(ke[moving] / np.maximum(ee[moving], 1e-30)))
         if moving.any()
         else 0.0,
@@ -93,10 +94,14 @@ def _to_simulation(preset: Preset, case: Case, res: RunResult, wall_time: float)
 
 
 def _run_kwargs(preset: Preset) -> dict:
-    return {"n_buffer": preset.n_buffer, "max_substeps": preset.max_substeps, "beta": preset.beta}
+    return {
+        "n_buffer": preset.n_buffer,
+        "max_substeps": preset.max_substeps,
+        "elem_bulk": preset.elem_bulk,
+    }
 
 
-def _compile(preset: Preset, cases: list[Case]):
+def compile_cases(preset: Preset, cases: list[Case]):
     """Compile the run for these cases' shapes; returns ``(compiled, args, seconds)``."""
     cl = jax.tree.map(jnp.asarray, cases[0].centreline)
     tets = jnp.asarray(cases[0].tets)
@@ -118,7 +123,7 @@ def simulate_cases(preset: Preset, cases: list[Case], compiled=None) -> list[Sim
     the number of cases; the compile time is stored as ``solver_compile_time_s`` (0 when
     ``compiled`` was given).
     """
-    fresh, args, t_compile = _compile(preset, cases) if compiled is None else (None, None, 0.0)
+    fresh, args, t_compile = compile_cases(preset, cases) if compiled is None else (None, None, 0.0)
     if compiled is None:
         compiled = fresh
     else:
@@ -126,7 +131,7 @@ def simulate_cases(preset: Preset, cases: list[Case], compiled=None) -> list[Sim
         params = cases[0].params if len(cases) == 1 else stack_cases(cases)
         args = (params, cl, jnp.asarray(cases[0].tets))
     t1 = time.perf_counter()
-    res = jax.block_until_ready(compiled(*args))
+    res = jax.block_until_ready(compiled(*args, max_substeps=preset.max_substeps))
     wall = (time.perf_counter() - t1) / len(cases)
     out = []
     for i, case in enumerate(cases):
@@ -193,7 +198,7 @@ def generate_dataset(
             padded = idx + [idx[-1]] * (min(preset.batch_size, n) - len(idx))
             cases = [build_case(preset, i, seed) for i in padded]
             if compiled is None:
-                compiled = _compile(preset, cases)[0]
+                compiled = compile_cases(preset, cases)[0]
             for sim in simulate_cases(preset, cases, compiled)[: len(idx)]:
                 w.add(sim)
                 first = first or sim

@@ -9,10 +9,12 @@ Linear tets lock in the volumetric term near incompressibility (one constraint p
 ~6 elements per node). We use the average nodal pressure (ANP) idea of Bonet & Burton (1998,
 Comm. Numer. Meth. Eng. 14): the volumetric energy is evaluated with nodal volume ratios
 ``J_n = (sum of current volumes of the tets around n) / (sum of their rest volumes)``, one
-constraint per node, which removes locking. A fraction ``beta`` (default 0.1) is kept per element
-(``J_e``) to suppress the spurious element-level volume modes of pure ANP; ``beta * kappa`` is
-then at most a compressible solid's bulk modulus, so no locking returns. Forces are
-``-jax.grad`` of the total energy, so they are consistent with it by construction.
+constraint per node, which removes locking. Pure ANP leaves element-level volume modes
+unresisted (single tets can collapse), so a part ``kappa_e = min(kappa, elem_bulk * mu)`` of the
+bulk modulus is kept per element (``J_e``) and only ``kappa - kappa_e`` goes to the nodes. With
+``elem_bulk = 4`` the element part is the bulk modulus of a solid with nu ~ 0.38, which does not
+lock, whatever the clot's nu. Forces are ``-jax.grad`` of the total energy, so they are
+consistent with it by construction.
 """
 
 from __future__ import annotations
@@ -21,9 +23,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-__all__ = ["lame", "reference_data", "element_J", "elastic_energy", "DEFAULT_BETA"]
+__all__ = ["lame", "reference_data", "element_J", "elastic_energy", "DEFAULT_ELEM_BULK"]
 
-DEFAULT_BETA = 0.1
+DEFAULT_ELEM_BULK = 4.0
 
 
 def lame(young: float, poisson: float) -> tuple[float, float]:
@@ -77,7 +79,7 @@ def elastic_energy(
     vol0_node: jnp.ndarray,
     mu: jnp.ndarray,
     kappa: jnp.ndarray,
-    beta: float = DEFAULT_BETA,
+    elem_bulk: float = DEFAULT_ELEM_BULK,
 ) -> jnp.ndarray:
     """Total elastic energy (scalar) of the clot.
 
@@ -86,7 +88,8 @@ def elastic_energy(
         tets: ``[C, 4]`` tets; dm_inv ``[C, 3, 3]``, vol0 ``[C]``, vol0_node ``[N]`` from
             :func:`reference_data`.
         mu, kappa: shear and bulk moduli (scalars).
-        beta: fraction of the volumetric energy evaluated per element (the rest per node).
+        elem_bulk: the per-element bulk modulus is ``min(kappa, elem_bulk * mu)``; the rest of
+            ``kappa`` acts on nodal volume ratios (``inf``: all per element, 0: pure ANP).
 
     Returns:
         ``[]`` energy.
@@ -99,6 +102,7 @@ def elastic_energy(
         jnp.repeat(j * vol0 / 4.0, 4), tets.reshape(-1), num_segments=x.shape[0]
     )
     j_node = vol_node / vol0_node
-    u_node = 0.5 * kappa * jnp.log(j_node) ** 2
-    u_elem = 0.5 * kappa * jnp.log(j) ** 2
-    return jnp.sum(vol0 * (w_dev + beta * u_elem)) + (1.0 - beta) * jnp.sum(vol0_node * u_node)
+    kappa_e = jnp.minimum(kappa, elem_bulk * mu)
+    u_node = 0.5 * (kappa - kappa_e) * jnp.log(j_node) ** 2
+    u_elem = 0.5 * kappa_e * jnp.log(j) ** 2
+    return jnp.sum(vol0 * (w_dev + u_elem)) + jnp.sum(vol0_node * u_node)

@@ -38,7 +38,7 @@ class Preset:
         penetration_target: contact stiffness aims at this penetration / radius;
         min_contact_pressure: floor of the pressure (times E) that sizes the stiffness;
         penetration_cap: hard cap on penetration / radius (normal velocity clamp).
-        beta: element fraction of the volumetric energy (material.py).
+        elem_bulk: cap of the per-element bulk modulus, in shear moduli (material.py).
         contact_damping: normal damping ratio; min_alpha: lower bound of mass damping.
         safety: fraction of the stable substep; exit_margin: distance past the outlet.
         n_buffer: stored dense frames (odd); max_substeps: safety cap per simulation.
@@ -69,10 +69,10 @@ class Preset:
     clot_length: float = 3.0
     clot_start_range: tuple[float, float] = (0.5, 1.5)
     roll_range: tuple[float, float] = (0.0, 90.0)
-    oversize_range: tuple[float, float] = (1.08, 1.2)
+    oversize_range: tuple[float, float] = (1.1, 1.2)
     friction_range: tuple[float, float] = (0.1, 0.3)
     drive_ratio_range: tuple[float, float] = (1.3, 2.0)
-    flow_speed_range: tuple[float, float] = (0.2, 0.3)
+    flow_speed_range: tuple[float, float] = (0.15, 0.25)
     young_range: tuple[float, float] = (0.8, 1.2)
     poisson_range: tuple[float, float] = (0.45, 0.49)
     squeeze: float = 0.97
@@ -80,7 +80,7 @@ class Preset:
     penetration_target: float = 0.005
     min_contact_pressure: float = 0.3
     penetration_cap: float = 0.01
-    beta: float = 0.5
+    elem_bulk: float = 4.0
     contact_damping: float = 0.5
     min_alpha: float = 0.5
     safety: float = 0.5
@@ -102,22 +102,23 @@ PRESETS: dict[str, Preset] = {
     "bendvessel-tiny": Preset(
         name="bendvessel-tiny", kind="bend", n_sims=2, n_frames=8, reference_wall_time_s=180.0,
         leg_in=2.0, leg_out=3.0, bend_radius=2.5, spacing=0.25, wall_rings=12, wall_around=12,
-        clot_cells=6, clot_length=2.0, clot_start_range=(0.3, 0.8), n_buffer=33,
+        clot_cells=6, clot_length=2.0, clot_start_range=(0.3, 0.8), n_buffer=129,
         poisson_range=(0.45, 0.49), max_substeps=40_000,
     ),
     "clotentry": Preset(
         name="clotentry", kind="tortuous", n_sims=10, n_frames=200,
         reference_wall_time_s=1500.0, length=60.0, spacing=0.25, wall_rings=340,
         wall_around=64, clot_cross=12, clot_cells=30, clot_length=5.0,
-        clot_start_range=(1.0, 3.0), ramp_time=12.0, n_buffer=801, batch_size=1,
-        max_substeps=400_000,
+        clot_start_range=(1.0, 3.0), ramp_time=12.0, flow_speed_range=(0.4, 0.6),
+        oversize_range=(1.08, 1.2),
+        safety=0.65, n_buffer=801, batch_size=1, max_substeps=400_000,
     ),
     "clotentry-tiny": Preset(
         name="clotentry-tiny", kind="tortuous", n_sims=2, n_frames=10,
-        reference_wall_time_s=1500.0, length=14.0, spacing=0.25, radius_end=1.05,
+        reference_wall_time_s=1500.0, length=14.0, spacing=0.25, radius_end=1.0,
         wobble=0.03, wall_rings=30, wall_around=12, clot_cross=4, clot_cells=6,
-        clot_length=2.0, clot_start_range=(0.5, 1.5), n_buffer=41, batch_size=1,
-        max_substeps=60_000,
+        clot_length=2.0, clot_start_range=(0.5, 1.5), n_buffer=129, batch_size=1,
+        flow_speed_range=(0.12, 0.2), oversize_range=(1.12, 1.2), max_substeps=60_000,
     ),
 }  # fmt: skip
 

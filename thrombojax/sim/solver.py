@@ -16,7 +16,11 @@ target penetration (``generate.py``), not from ``dt``; ``A`` is the node's bound
 the wall pressure does not depend on the mesh size. The substep is
 ``dt = safety * 2 / omega_max`` with ``omega_max^2`` the largest eigenvalue of ``M^-1 K`` at
 the (pre-stressed) start, found by power iteration on Hessian-vector products, plus the
-largest contact ``k A / m`` (:func:`stable_dt`).
+largest contact ``k A / m`` (:func:`stable_dt`). This is the exact linearised limit; the classic
+``smallest tet height / dilatational wave speed`` rule is cruder (it ignores that the averaged
+nodal pressure spreads the bulk stiffness over node patches) and is only recorded
+(``substep_dt_wave_estimate``) for comparison. ``safety`` (0.5 - 0.65) covers the stiffening of
+compressed tets and the contact.
 
 :func:`run` advances until every clot node has passed the vessel outlet by ``exit_margin``
 (``lax.while_loop`` over chunks of ``stride`` substeps, a ``lax.fori_loop`` each, with a cap
@@ -35,7 +39,7 @@ import jax.numpy as jnp
 from flax import struct
 
 from thrombojax.sim.geometry import Centreline, nearest_segment
-from thrombojax.sim.material import DEFAULT_BETA, elastic_energy
+from thrombojax.sim.material import DEFAULT_ELEM_BULK, elastic_energy
 
 __all__ = ["CaseParams", "RunResult", "energy_fn", "stable_dt", "run", "run_batch"]
 
@@ -101,17 +105,20 @@ class RunResult:
     max_penetration: jnp.ndarray
 
 
-def energy_fn(p: CaseParams, tets: jnp.ndarray, beta: float = DEFAULT_BETA):
+def energy_fn(p: CaseParams, tets: jnp.ndarray, elem_bulk: float = DEFAULT_ELEM_BULK):
     """``x [N, 3] -> []`` the clot's elastic energy for case ``p``."""
-    return lambda x: elastic_energy(x, tets, p.dm_inv, p.vol0, p.vol0_node, p.mu, p.kappa, beta)
+    return lambda x: elastic_energy(
+        x, tets, p.dm_inv, p.vol0, p.vol0_node, p.mu, p.kappa, elem_bulk
+    )
 
 
+@functools.partial(jax.jit, static_argnames=("elem_bulk", "iters"))
 def stable_dt(
     p: CaseParams,
     tets: jnp.ndarray,
     *,
     safety: float,
-    beta: float = DEFAULT_BETA,
+    elem_bulk: float = DEFAULT_ELEM_BULK,
     iters: int = 60,
 ) -> jnp.ndarray:
     """Stable explicit substep ``safety * 2 / sqrt(lambda_el + lambda_contact)``.
@@ -120,7 +127,7 @@ def stable_dt(
     with Hessian-vector products, 5 % added for its slow convergence); ``lambda_contact`` the
     largest ``k_contact * area / mass``. Jittable; ``p.dt`` is ignored.
     """
-    grad = jax.grad(energy_fn(p, tets, beta))
+    grad = jax.grad(energy_fn(p, tets, elem_bulk))
     s = 1.0 / jnp.sqrt(p.mass)[:, None]
 
     def hvp(u):
@@ -164,7 +171,7 @@ def _substep(p: CaseParams, cl: Centreline, grad, carry):
     return x + p.dt * v1, v1, geo["seg"], step + 1, pen_max
 
 
-@functools.partial(jax.jit, static_argnames=("n_buffer", "max_substeps", "beta"))
+@functools.partial(jax.jit, static_argnames=("n_buffer", "elem_bulk"))
 def run(
     p: CaseParams,
     cl: Centreline,
@@ -172,7 +179,7 @@ def run(
     *,
     n_buffer: int,
     max_substeps: int,
-    beta: float = DEFAULT_BETA,
+    elem_bulk: float = DEFAULT_ELEM_BULK,
 ) -> RunResult:
     """Simulate one case until the clot has left the vessel (or ``max_substeps``).
 
@@ -181,15 +188,15 @@ def run(
         cl: the vessel centreline.
         tets: ``[C, 4]`` clot tets.
         n_buffer: stored frames (odd; the run ends with ``(n_buffer+1)/2 .. n_buffer``).
-        max_substeps: safety cap on the number of substeps.
-        beta: element fraction of the volumetric energy (material.py).
+        max_substeps: safety cap on the number of substeps (traced: no recompile).
+        elem_bulk: cap of the per-element bulk modulus, in shear moduli (material.py).
 
     Returns:
         :class:`RunResult`.
     """
     if n_buffer % 2 == 0 or n_buffer < 3:
         raise ValueError("n_buffer must be odd and >= 3")
-    energy = energy_fn(p, tets, beta)
+    energy = energy_fn(p, tets, elem_bulk)
     grad = jax.grad(energy)
     dtype = p.x0.dtype
     frames = jnp.zeros((n_buffer,) + p.x0.shape, dtype).at[0].set(p.x0)
@@ -237,7 +244,7 @@ def run(
     )  # fmt: skip
 
 
-@functools.partial(jax.jit, static_argnames=("n_buffer", "max_substeps", "beta"))
+@functools.partial(jax.jit, static_argnames=("n_buffer", "elem_bulk"))
 def run_batch(
     p: CaseParams,
     cl: Centreline,
@@ -245,12 +252,12 @@ def run_batch(
     *,
     n_buffer: int,
     max_substeps: int,
-    beta: float = DEFAULT_BETA,
+    elem_bulk: float = DEFAULT_ELEM_BULK,
 ) -> RunResult:
     """:func:`run` vmapped over cases stacked along axis 0 of every field of ``p``.
 
     The loop runs until every case has exited; finished cases are frozen (their buffers stay
     consistent), so each case's result equals its own :func:`run`.
     """
-    fn = functools.partial(run, n_buffer=n_buffer, max_substeps=max_substeps, beta=beta)
+    fn = functools.partial(run, n_buffer=n_buffer, max_substeps=max_substeps, elem_bulk=elem_bulk)
     return jax.vmap(fn, in_axes=(0, None, None))(p, cl, tets)

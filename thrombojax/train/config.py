@@ -44,8 +44,8 @@ class TrainConfig:
         nodes_per_sample: subsample this many nodes per sample (``None``: all).
         bary_ratio: generated (BaryCentricSampling) samples per real sample.
         bary_radius: radius of the graph whose triangles are sampled (``None``: model radius).
-        bary_max_neighbors: neighbour cap of that graph.
-        bary_max_triangles: initial triangle buffer per sample (doubled on overflow).
+        bary_max_neighbors: neighbour cap of that graph (``K``; ``K (K - 1) / 2`` triangle
+            candidates per node).
         noise_std, noise_gamma: training noise on s_t (MeshGraphNets' recipe; 0: off).
         seed: initialisation, data order, augmentations.
         split_seed: which simulations are validation / test.
@@ -68,7 +68,6 @@ class TrainConfig:
     bary_ratio: float = 0.0
     bary_radius: float | None = None
     bary_max_neighbors: int = 16
-    bary_max_triangles: int = 4096
     noise_std: float = 0.0
     noise_gamma: float = 0.1
     seed: int = 0

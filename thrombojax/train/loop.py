@@ -125,6 +125,8 @@ def train(
                 f"conflicting options: {asked or {'model': model_name}}"
             )
         cfg = saved_cfg
+        # killed before its first checkpoint: nothing to continue, start the same run afresh
+        resume = latest_step(out_dir / "checkpoints" / "last") is not None
     elif latest_step(out_dir / "checkpoints" / "last") is not None:
         raise FileExistsError(
             f"{out_dir}: already holds a training run; use --resume or a new --out"
@@ -155,10 +157,8 @@ def train(
                                 batch_size=batch_size, seed=cfg.seed)
     steps_per_epoch = plan_of(epoch=0).shape[0]
     total_steps = cfg.epochs * steps_per_epoch
-    tx = make_optimizer(
-        make_schedule(lr, total_steps, round(cfg.warmup_epochs * steps_per_epoch)),
-        weight_decay=cfg.weight_decay, grad_clip=cfg.grad_clip,
-    )
+    schedule = make_schedule(lr, total_steps, round(cfg.warmup_epochs * steps_per_epoch))
+    tx = make_optimizer(schedule, weight_decay=cfg.weight_decay, grad_clip=cfg.grad_clip)
     batch_of = functools.partial(make_batch, train_store, budget=budget,
                                  nodes_per_sample=cfg.nodes_per_sample, seed=cfg.seed)
     run_key, init_key = jax.random.split(jax.random.PRNGKey(cfg.seed))
@@ -183,14 +183,12 @@ def train(
     aug_cfg = AugmentConfig(
         max_rotation=cfg.max_rotation, barycentric=cfg.bary_ratio > 0,
         radius=cfg.bary_radius or model_cfg.radius, max_neighbors=cfg.bary_max_neighbors,
-        max_triangles=cfg.bary_max_triangles,
     )
     augment = jax.jit(functools.partial(augment_batch, config=aug_cfg))
     train_step = make_train_step(model, tx, stats, noise_std=cfg.noise_std,
                                  noise_gamma=cfg.noise_gamma)
     eval_step = make_eval_step(model, stats)
     val_batches = _eval_batches(val_store, budget, batch_size, cfg) if val_store else []
-    schedule = make_schedule(lr, total_steps, round(cfg.warmup_epochs * steps_per_epoch))
     state = replicate(state, mesh)
     ckpt = out_dir / "checkpoints"
 
@@ -209,13 +207,7 @@ def train(
             step = epoch * steps_per_epoch + position
             aug_key, step_key = jax.random.split(jax.random.fold_in(run_key, step))
             host_batch = batch_of(plan[position], epoch=epoch, position=position)
-            while True:
-                batch, overflow = augment(aug_key, shard_batch(host_batch, mesh))
-                if not bool(overflow):
-                    break
-                aug_cfg = AugmentConfig(**{**aug_cfg.__dict__,
-                                           "max_triangles": 2 * aug_cfg.max_triangles})
-                augment = jax.jit(functools.partial(augment_batch, config=aug_cfg))
+            batch = augment(aug_key, shard_batch(host_batch, mesh))
             new_state, metrics = train_step(state, batch, step_key)
             metrics = {k: float(v) for k, v in jax.device_get(metrics).items()}
             if not math.isfinite(metrics["loss"]):

@@ -98,6 +98,8 @@ def save_checkpoint(directory: str | pathlib.Path, state: TrainState, rng: jax.A
     step = int(jax.device_get(state.step))
     train = {"opt_state": state.opt_state, "step": state.step, "rng": rng}
     with _manager(pathlib.Path(directory)) as mngr:
+        if step in mngr.all_steps():  # re-saving after a resume: replace it
+            mngr.delete(step)
         mngr.save(
             step,
             args=ocp.args.Composite(

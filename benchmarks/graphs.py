@@ -1,0 +1,154 @@
+"""Benchmark the graph builders: radius graph (dense and grid) and Erwin's ball tree.
+
+Usage: ``python benchmarks/graphs.py [--nodes 2048 27000] [--repeats 5] [--out FILE.json]``.
+
+Frames are solver-like synthetic clouds in scaled [-1, 1] coordinates: the wall of a bent,
+tortuous tube (rigid vessel nodes) plus a dense cylindrical clot blob inside it (about 12 % of
+the nodes). Radii are the study's (0.56 MGN, 0.576 Transolver, 0.766 Erwin), cap K = 32.
+Compile time (first call: trace + compile + run) is reported apart from the steady-state time
+(median of ``--repeats`` calls). Device, versions, date and the machine load are printed.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import statistics
+import time
+
+import jax
+import numpy as np
+
+from thrombojax.graph import build_balltree, estimate_capacity, radius_graph
+
+RADII = {"mgn": 0.56, "transolver": 0.576, "erwin": 0.766}
+MAX_NEIGHBORS = 32
+ERWIN_TREE = {"strides": (2, 2, 2), "ball_sizes": (128, 128, 128, 128), "rotate": 45.0}
+
+
+def vessel_frame(n: int, seed: int = 0, clot_fraction: float = 0.12) -> np.ndarray:
+    """``[n, 3]`` float32: points on a tortuous tube wall plus a clot blob, scaled to [-1, 1]."""
+    rng = np.random.default_rng(seed)
+    n_clot = int(n * clot_fraction)
+    s = rng.uniform(0.0, 1.0, n - n_clot)
+    theta = rng.uniform(0.0, 2 * np.pi, n - n_clot)
+
+    def centre(t):
+        return np.stack([2.4 * t - 1.2, 0.5 * np.sin(2.5 * t), 0.3 * np.cos(4.0 * t)], axis=-1)
+
+    def frame(t):
+        tangent = centre(t + 1e-4) - centre(t - 1e-4)
+        tangent /= np.linalg.norm(tangent, axis=-1, keepdims=True)
+        normal = np.cross(tangent, np.array([0.0, 0.0, 1.0]))
+        normal /= np.linalg.norm(normal, axis=-1, keepdims=True)
+        return normal, np.cross(tangent, normal)
+
+    radius = 0.09
+    nrm, bin_ = frame(s)
+    wall = centre(s) + radius * (np.cos(theta)[:, None] * nrm + np.sin(theta)[:, None] * bin_)
+    t = rng.uniform(0.45, 0.55, n_clot)
+    rho = 0.8 * radius * np.sqrt(rng.uniform(0.0, 1.0, n_clot))
+    phi = rng.uniform(0.0, 2 * np.pi, n_clot)
+    nrm, bin_ = frame(t)
+    clot = centre(t) + rho[:, None] * (np.cos(phi)[:, None] * nrm + np.sin(phi)[:, None] * bin_)
+    pts = np.concatenate([wall, clot])
+    pts = (pts - pts.mean(0)) / np.abs(pts - pts.mean(0)).max()
+    return pts.astype(np.float32)
+
+
+def _time(fn, *args, repeats: int) -> tuple[float, float]:
+    t0 = time.perf_counter()
+    jax.block_until_ready(fn(*args))
+    first = time.perf_counter() - t0
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        jax.block_until_ready(fn(*args))
+        times.append(time.perf_counter() - t0)
+    return first, statistics.median(times)
+
+
+def run(nodes=(2048, 27000), repeats: int = 5, dense_max: int = 30000) -> list[dict]:
+    """Time every (nodes, builder) pair; returns one record per measurement."""
+    records = []
+    for n in nodes:
+        x = jax.device_put(vessel_frame(n))
+        for model, r in RADII.items():
+            spec = estimate_capacity(np.asarray(x), r, MAX_NEIGHBORS)
+            methods = {"grid": spec}
+            if n <= dense_max:
+                methods["dense"] = None
+            for method, grid in methods.items():
+                fn = jax.jit(
+                    lambda p, r=r, method=method, grid=grid: radius_graph(
+                        p, r, MAX_NEIGHBORS, method=method, grid=grid
+                    )
+                )
+                first, steady = _time(fn, x, repeats=repeats if n < 10000 else 2)
+                nbrs = fn(x)
+                records.append(
+                    dict(
+                        what="radius_graph", nodes=n, model=model, r=r, method=method,
+                        grid=None if grid is None else str(grid), compile_s=first - steady,
+                        steady_ms=1e3 * steady, overflow=bool(nbrs.overflow),
+                        mean_count=float(np.mean(np.asarray(nbrs.counts))),
+                    )
+                )
+                print(_fmt(records[-1]), flush=True)
+        fn = jax.jit(lambda p: build_balltree(p, **ERWIN_TREE))
+        first, steady = _time(fn, x, repeats=repeats)
+        records.append(
+            dict(what="balltree", nodes=n, compile_s=first - steady, steady_ms=1e3 * steady,
+                 **{k: str(v) for k, v in ERWIN_TREE.items()})
+        )
+        print(_fmt(records[-1]), flush=True)
+    return records
+
+
+def _fmt(rec: dict) -> str:
+    head = f"{rec['what']:<12} N={rec['nodes']:<6}"
+    if rec["what"] == "radius_graph":
+        head += f" {rec['model']:<10} r={rec['r']:<5} {rec['method']:<5}"
+        tail = f" overflow={rec['overflow']} mean_count={rec['mean_count']:.0f} {rec['grid'] or ''}"
+    else:
+        head += f" strides={rec['strides']} balls={rec['ball_sizes']} rotate={rec['rotate']}"
+        tail = ""
+    return f"{head} compile {rec['compile_s']:6.2f} s  steady {rec['steady_ms']:8.2f} ms{tail}"
+
+
+def environment() -> dict:
+    """Device, versions, date and load average (the CPU may be shared)."""
+    import flax
+
+    return dict(
+        date=time.strftime("%Y-%m-%d %H:%M:%S %Z"),
+        device=str(jax.devices()[0]),
+        platform=platform.platform(),
+        cpu_count=os.cpu_count(),
+        load_avg=os.getloadavg(),
+        jax=jax.__version__,
+        flax=flax.__version__,
+        numpy=np.__version__,
+    )
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--nodes", type=int, nargs="+", default=[2048, 27000])
+    parser.add_argument("--repeats", type=int, default=5)
+    parser.add_argument("--out", default=None, help="write the records as JSON here")
+    args = parser.parse_args()
+    env = environment()
+    print(json.dumps(env))
+    records = run(tuple(args.nodes), args.repeats)
+    env["load_avg_end"] = os.getloadavg()
+    print(f"load average at the end: {env['load_avg_end']}")
+    if args.out:
+        with open(args.out, "w") as fh:
+            json.dump({"environment": env, "records": records}, fh, indent=1)
+
+
+if __name__ == "__main__":
+    main()
