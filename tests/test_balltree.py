@@ -115,8 +115,9 @@ def test_balls_are_spatially_compact():
     rot = pts[np.asarray(tree.rot_perm[0])]
     assert mean_ball_radius(rot, 16) < 0.35 * mean_ball_radius(pts[rng.permutation(2048)], 16)
     same = [
-        set(np.asarray(tree.perm)[i : i + 16]) == set(np.asarray(tree.perm)[np.asarray(
-            tree.rot_perm[0])][i : i + 16]) for i in range(0, 2048, 16)
+        set(np.asarray(tree.perm)[i : i + 16])
+        == set(np.asarray(tree.perm)[np.asarray(tree.rot_perm[0])][i : i + 16])
+        for i in range(0, 2048, 16)
     ]
     assert np.mean(same) < 0.5
 
@@ -144,3 +145,13 @@ def test_bad_configuration_raises():
         build_balltree_numpy(cloud(100), strides=(3,), ball_sizes=(8, 8), rotate=45.0)
     with pytest.raises(ConfigError):
         build_balltree_numpy(cloud(100), strides=(2,), ball_sizes=(8,), rotate=45.0)
+
+
+def test_vmap_and_empty_mask():
+    xb = np.stack([cloud(100, seed=s) for s in (8, 9)])
+    mb = np.stack([np.arange(100) < 70, np.zeros(100, bool)])
+    fn = jax.jit(jax.vmap(lambda p, m: build_balltree(p, mask=m)))
+    trees = fn(xb, mb)
+    ref = build_balltree_numpy(xb[0], mask=mb[0])
+    np.testing.assert_array_equal(np.asarray(trees.perm[0]), ref.perm)
+    assert not np.asarray(trees.slot_mask[1]).any()  # no real node: every slot is padding

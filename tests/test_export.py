@@ -41,6 +41,15 @@ def test_xdmf_series_has_moving_geometry_and_node_types(tmp_path):
         # mixed topology: [6, tet...] then [1, 1, node] per loose node
         np.testing.assert_array_equal(f["topology"][()], [6, 0, 1, 2, 3, 1, 1, 4, 1, 1, 5])
         np.testing.assert_allclose(f["fields/displacement/00002"][()][0], [1.0, 0, 0])
+    # an independent reader agrees (meshio misreads XDMF polyvertex counts, so cover all nodes)
+    path = export_trajectory(tmp_path / "cells.xdmf", pos, node_type, clot_cells=tets,
+                             wall_cells=[[3, 4, 5]], dt=0.1, point_data={"error": err})
+    reader = meshio.xdmf.TimeSeriesReader(path)
+    points, cells = reader.read_points_cells()
+    np.testing.assert_allclose(points, pos[0])
+    assert [(c.type, len(c.data)) for c in cells] == [("tetra", 1), ("triangle", 1)]
+    t, point_data, _ = reader.read_data(1)
+    assert t == pytest.approx(0.1) and point_data["error"].tolist() == err[1].tolist()
 
 
 def test_vtu_series_and_errors(tmp_path):

@@ -18,7 +18,8 @@ def brute_force(ids, n, keep=None):
                 adj[i, j] = adj[j, i] = True
     ok = np.ones(n, bool) if keep is None else keep
     return [
-        t for t in itertools.combinations(range(n), 3)
+        t
+        for t in itertools.combinations(range(n), 3)
         if ok[list(t)].all() and adj[t[0], t[1]] and adj[t[1], t[2]] and adj[t[0], t[2]]
     ]
 
@@ -41,8 +42,9 @@ def test_senders_receivers_input_restriction_and_bound(graph):
     node_type = np.random.default_rng(1).integers(0, 2, 80)
     s, r, _ = senders_receivers(graph)
     want = brute_force(np.asarray(graph.indices), 80, keep=node_type == 1)
-    tri, count, overflow = find_triangles((s, r), 64, n_nodes=80, node_type=node_type,
-                                          restrict_to=1)
+    tri, count, overflow = find_triangles(
+        (s, r), 64, n_nodes=80, node_type=node_type, restrict_to=1
+    )
     assert count == len(want) and not overflow and tri.shape == (64, 3)
     assert [tuple(t) for t in tri[:count]] == want and np.all(tri[count:] == 80)
     tri, count2, overflow = find_triangles(graph, 2)

@@ -208,6 +208,8 @@ def _add_train(sub) -> None:
     p.add_argument("--noise-std", type=float, help="training noise on s_t (default 0: off)")
     p.add_argument("--seed", type=int, help="seed of initialisation, data order, augmentations")
     p.add_argument("--skip-frames", type=int, help="first frames never used as middle frame")
+    p.add_argument("--n-val", type=int, help="validation simulations (default 2)")
+    p.add_argument("--n-test", type=int, help="test simulations, never trained on (default 1)")
     p.add_argument("--tiny", action="store_true", default=None, help="tiny model config")
     p.add_argument("--distributed", action="store_true",
                    help="multi-host: call jax.distributed.initialize() first (run on every host)")
@@ -219,7 +221,8 @@ def _run_train(args) -> int:
     from thrombojax.train.loop import train
 
     names = ("epochs", "batch_size", "lr", "warmup_epochs", "radius", "max_rotation",
-             "nodes_per_sample", "bary_ratio", "noise_std", "seed", "skip_frames", "tiny")
+             "nodes_per_sample", "bary_ratio", "noise_std", "seed", "skip_frames", "n_val",
+             "n_test", "tiny")
     overrides = {k: getattr(args, k) for k in names if getattr(args, k) is not None}
     trained = train(args.dataset, args.model, args.out, config=args.config, resume=args.resume,
                     progress=not args.quiet, distributed=args.distributed, **overrides)

@@ -40,7 +40,7 @@ import numpy as np
 from flax import struct
 
 from thrombojax.errors import CapacityOverflowError, ConfigError
-from thrombojax.graph.grid import GridSpec, estimate_capacity, grid_search, grow
+from thrombojax.graph.grid import GridSpec, estimate_capacity, grid_search, grow, smallest_k
 
 __all__ = [
     "AUTO_GRID_MIN_NODES",
@@ -59,7 +59,9 @@ __all__ = [
 AUTO_GRID_MIN_NODES: int = 4096
 """``method="auto"`` uses the grid only from this many nodes on (below, dense is as fast)."""
 
-_TILE_ELEMENTS = 1 << 21  # dense method: rows per tile chosen so that tile_rows * N <= this
+_TILE_ELEMENTS = 1 << 19  # dense method: tile_rows * N <= this (smaller tiles stay in cache)
+_MIN_TILE_ROWS = 16
+_SHUFFLE_COLUMNS = True
 
 
 @struct.dataclass
@@ -97,29 +99,40 @@ def _select_k(d2, cand, k, sentinel):
     """K smallest of ``d2 [T, M]`` -> ``cand [M]`` ids ``[T, K]`` nearest first, sentinel if inf."""
     m = d2.shape[-1]
     kk = min(k, m)
-    neg, pos = jax.lax.top_k(-d2, kk)
-    ids = jnp.where(jnp.isfinite(neg), cand[pos], sentinel).astype(jnp.int32)
+    vals, pos = smallest_k(d2, kk)
+    ids = jnp.where(jnp.isfinite(vals), cand[pos], sentinel).astype(jnp.int32)
     if kk < k:
         ids = jnp.pad(ids, ((0, 0), (0, k - kk)), constant_values=sentinel)
     return ids
 
 
+def _column_order(n: int) -> np.ndarray:
+    """The dense method's static order of candidate columns ``[N]`` int32 (see ``_dense``)."""
+    if not _SHUFFLE_COLUMNS:
+        return np.arange(n, dtype=np.int32)
+    return np.random.default_rng(0).permutation(n).astype(np.int32)
+
+
 def _dense(positions, r, k, mask, loop, tile_rows):
     n = positions.shape[0]
-    t = tile_rows or max(1, min(n, _TILE_ELEMENTS // max(n, 1)))
+    t = tile_rows or min(n, max(_MIN_TILE_ROWS, _TILE_ELEMENTS // max(n, 1)))
     n_tiles = -(-n // t)
     pad = n_tiles * t - n
     rows = jnp.arange(n_tiles * t, dtype=jnp.int32).reshape(n_tiles, t)
     xq_all = jnp.pad(positions, ((0, pad), (0, 0))).reshape(n_tiles, t, 3)
     q_mask = jnp.pad(mask, (0, pad)).reshape(n_tiles, t)
-    cand = jnp.arange(n, dtype=jnp.int32)
     r2 = jnp.asarray(r, positions.dtype) ** 2
+    # Candidate columns in a fixed pseudo-random order: lax.top_k on the CPU is up to 1.5x
+    # slower on spatially coherent node orders (solver meshes) than on shuffled ones.
+    perm = _column_order(n)
+    cand = jnp.asarray(perm)
+    cols = positions[perm].T  # [3, N]: per-coordinate differences vectorise along the rows
+    col_mask = mask[perm]
 
     def tile(args):
         iq, xq, mq = args
-        diff = xq[:, None, :] - positions[None, :, :]
-        d2 = jnp.sum(diff * diff, axis=-1)
-        ok = mask[None, :] & mq[:, None] & (d2 < r2)
+        d2 = sum((xq[:, c : c + 1] - cols[c][None, :]) ** 2 for c in range(3))
+        ok = col_mask[None, :] & mq[:, None] & (d2 < r2)
         if not loop:
             ok = ok & (iq[:, None] != cand[None, :])
         d2 = jnp.where(ok, d2, jnp.inf)
@@ -158,7 +171,7 @@ def radius_graph(
         loop: include ``i`` in its own list (it counts in ``counts`` too).
         method: ``"dense"``, ``"grid"`` (needs ``grid``) or ``"auto"``.
         grid: the :class:`GridSpec` (from :func:`thrombojax.graph.estimate_capacity`).
-        tile_rows: dense method: rows per tile (default: ``tile_rows * N <= 2**21``).
+        tile_rows: dense method: rows per tile (default: ``tile_rows * N <= 2**19``, at least 16).
 
     Returns:
         A :class:`NeighborList` with ``indices [N, K]``, ``counts [N]``, ``overflow []``.
@@ -257,7 +270,6 @@ def to_graphs_tuple(
         n_node=jnp.array([n, 1], jnp.int32),
         n_edge=jnp.stack([e_real, senders.shape[0] - e_real]),
     )
-
 
 
 _radius_graph_jit = jax.jit(

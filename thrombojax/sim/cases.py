@@ -54,29 +54,49 @@ class Case:
 
 
 def build_vessel(preset: Preset, index: int, seed: int) -> tuple[geo.Centreline, dict]:
-    """The (unrotated) vessel centreline of simulation ``index`` and its geometry attributes."""
+    """The (unrotated) vessel centreline of simulation ``index`` and its geometry attributes.
+
+    The last ``outlet_flare_length`` of every vessel widens smoothly (quadratically) by
+    ``outlet_flare`` times its radius, like an artery opening into a larger lumen. Without it,
+    the part of the clot that has left bulges out to its rest radius, and a bulging node that
+    slips back across the outlet plane would land deep inside the wall.
+    """
     if preset.kind == "bend":
         pts = geo.bent_tube_points(
             preset.leg_in, preset.leg_out, preset.bend_radius, preset.bend_angle_deg, preset.spacing
         )
-        cl = geo.make_centreline(pts, np.full(len(pts), preset.radius))
-        return cl, {
+        radius = np.full(len(pts), preset.radius)
+        attrs = {
             "vessel": "bent tube",
             "leg_in": preset.leg_in,
             "leg_out": preset.leg_out,
             "bend_radius": preset.bend_radius,
             "bend_angle_deg": preset.bend_angle_deg,
         }
-    rng = np.random.default_rng([seed, index, 1])
-    clearance = 2.0 * max(preset.radius, preset.radius_end) * (1 + preset.wobble) + 0.5
-    pts = geo.tortuous_points(rng, preset.length, preset.min_bend_radius, preset.spacing, clearance)
+    else:
+        rng = np.random.default_rng([seed, index, 1])
+        clearance = 2.0 * max(preset.radius, preset.radius_end) * (1 + preset.wobble) + 0.5
+        pts = geo.tortuous_points(
+            rng, preset.length, preset.min_bend_radius, preset.spacing, clearance
+        )
+        arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(pts, axis=0), axis=1))])
+        radius = geo.radius_profile(arc, preset.radius, preset.radius_end, preset.wobble, rng)
+        attrs = {
+            "vessel": "tortuous",
+            "vessel_length": float(arc[-1]),
+            "min_bend_radius": preset.min_bend_radius,
+            "radius_start": preset.radius,
+            "radius_end": preset.radius_end,
+            "radius_wobble": preset.wobble,
+        }
     arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(pts, axis=0), axis=1))])
-    radius = geo.radius_profile(arc, preset.radius, preset.radius_end, preset.wobble, rng)
-    return geo.make_centreline(pts, radius), {
-        "vessel": "tortuous", "vessel_length": float(arc[-1]),
-        "min_bend_radius": preset.min_bend_radius, "radius_start": preset.radius,
-        "radius_end": preset.radius_end, "radius_wobble": preset.wobble,
-    }  # fmt: skip
+    u = np.clip((arc - arc[-1] + preset.outlet_flare_length) / preset.outlet_flare_length, 0, 1)
+    radius = radius * (1.0 + preset.outlet_flare * u**2)
+    attrs |= {
+        "outlet_flare": preset.outlet_flare,
+        "outlet_flare_length": preset.outlet_flare_length,
+    }
+    return geo.make_centreline(pts, radius), attrs
 
 
 def _draw(rng: np.random.Generator, bounds: tuple[float, float]) -> float:

@@ -36,8 +36,9 @@ def plot_simulation(sim: Simulation, path: str | Path, *, n_panels: int = 4) -> 
     fig = plt.figure(figsize=(4.0 * len(frames), 4.2))
     for k, t in enumerate(frames):
         ax = fig.add_subplot(1, len(frames), k + 1, projection="3d")
-        ax.scatter(*wall.T, s=0.8, c="0.35", alpha=0.5, depthshade=False)
-        ax.scatter(*pos[t, clot].T, s=2.0, c="crimson", depthshade=False)
+        ax.computed_zorder = False  # draw the clot over the wall, whatever the view
+        ax.scatter(*wall.T, s=0.5, c="0.4", alpha=0.25, depthshade=False, zorder=1)
+        ax.scatter(*pos[t, clot].T, s=2.0, c="crimson", depthshade=False, zorder=2)
         for i, setter in enumerate((ax.set_xlim, ax.set_ylim, ax.set_zlim)):
             setter(centre[i] - half, centre[i] + half)
         ax.set_box_aspect((1, 1, 1))

@@ -41,6 +41,8 @@ class Preset:
         elem_bulk: cap of the per-element bulk modulus, in shear moduli (material.py).
         contact_damping: normal damping ratio; min_alpha: lower bound of mass damping.
         safety: fraction of the stable substep; exit_margin: distance past the outlet.
+        outlet_flare, outlet_flare_length: the outlet widens by this fraction of its radius
+            over this length (cases.build_vessel).
         n_buffer: stored dense frames (odd); max_substeps: safety cap per simulation.
         batch_size: simulations run together with ``vmap`` (same mesh; 1 = one at a time).
     """
@@ -85,6 +87,8 @@ class Preset:
     min_alpha: float = 0.5
     safety: float = 0.5
     exit_margin: float = 0.5
+    outlet_flare: float = 0.3
+    outlet_flare_length: float = 1.5
     n_buffer: int = 161
     max_substeps: int = 200_000
     batch_size: int = 5
