@@ -38,7 +38,15 @@ from thrombojax.evaluate import default_skip, markdown_table
 from thrombojax.rollout import rollout_jit, select_subset
 from thrombojax.types import NodeType
 
-__all__ = ["BenchCase", "STUDY_CASES", "synthetic_cloud", "time_rollout", "environment", "bench"]
+__all__ = [
+    "BenchCase",
+    "STUDY_CASES",
+    "synthetic_cloud",
+    "time_rollout",
+    "environment",
+    "bench",
+    "bench_markdown",
+]
 
 
 @dataclasses.dataclass(frozen=True)

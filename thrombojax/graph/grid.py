@@ -55,6 +55,10 @@ class GridSpec:
         capacity: slots per run for the light nodes.
         heavy_capacity: slots per run for the heavy nodes (``>= capacity``).
         heavy_nodes: number of nodes searched with ``heavy_capacity`` (0: none).
+        heavy_cell_size: k-nearest mode only: if > 0, the heavy nodes (dense regions) search a
+            second, finer grid of this cell size (their K-th neighbour is closer), with
+            ``heavy_capacity`` slots per run of that grid; 0: the same grid as the light nodes.
+        heavy_grid_shape: cells per axis of that finer grid.
     """
 
     cell_size: float
@@ -62,6 +66,14 @@ class GridSpec:
     capacity: int
     heavy_capacity: int = 0
     heavy_nodes: int = 0
+    heavy_cell_size: float = 0.0
+    heavy_grid_shape: tuple[int, int, int] = (1, 1, 1)
+
+    def heavy_spec(self) -> GridSpec:
+        """The grid searched by the heavy nodes (this one, or the finer second grid)."""
+        if self.heavy_cell_size <= 0:
+            return self
+        return GridSpec(self.heavy_cell_size, self.heavy_grid_shape, self.heavy_capacity)
 
 
 def smallest_k(d2: jax.Array, k: int) -> tuple[jax.Array, jax.Array]:
@@ -197,30 +209,54 @@ def grid_search(positions, r, k, mask, loop, spec: GridSpec):
         ``overflow []`` bool.
     """
     n = positions.shape[0]
-    if math.prod(spec.grid_shape) >= 2**31 - 1 or min(spec.grid_shape) < 1:
-        raise ConfigError(f"GridSpec.grid_shape {spec.grid_shape}: need 1 <= cells < 2**31")
+    _check_shape(spec)
     order, start, end, live = _query_runs(positions, mask, spec, jnp)
     real = mask[order]
     end = jnp.where(real[:, None], end, -1)  # padded queries: no candidates
     weight = jnp.max(jnp.where(live, end - start, 0), axis=1)
-    n_heavy = min(spec.heavy_nodes, n) if spec.heavy_capacity > spec.capacity else 0
+    n_heavy = min(spec.heavy_nodes, n) if _has_heavy(spec) else 0
     by_weight = jnp.argsort(weight, stable=True).astype(jnp.int32)
     light, heavy = by_weight[: n - n_heavy], by_weight[n - n_heavy :]
     overflow = jnp.any(weight[light] > spec.capacity)
     ids, counts, miss = _search(
         positions, order, start, end, light, r, k, loop, spec.capacity, spec.cell_size
     )
-    if n_heavy:
+    if n_heavy and spec.heavy_cell_size > 0:  # the heavy nodes search the finer grid
+        fine = spec.heavy_spec()
+        _check_shape(fine)
+        order_f, start_f, end_f, live_f = _query_runs(positions, mask, fine, jnp)
+        end_f = jnp.where(mask[order_f][:, None], end_f, -1)
+        rank_f = jnp.zeros((n,), jnp.int32).at[order_f].set(jnp.arange(n, dtype=jnp.int32))
+        heavy_f = rank_f[order[heavy]]  # the heavy nodes' positions in the fine sorted order
+        weight_f = jnp.max(jnp.where(live_f, end_f - start_f, 0), axis=1)
+        overflow |= jnp.any(weight_f[heavy_f] > spec.heavy_capacity)
+        ids_h, counts_h, miss_h = _search(
+            positions, order_f, start_f, end_f, heavy_f, r, k, loop, fine.capacity, fine.cell_size
+        )
+    elif n_heavy:
         overflow |= jnp.any(weight[heavy] > spec.heavy_capacity)
         ids_h, counts_h, miss_h = _search(
             positions, order, start, end, heavy, r, k, loop, spec.heavy_capacity, spec.cell_size
         )
+    if n_heavy:
         ids = jnp.concatenate([ids, ids_h])
         counts = jnp.concatenate([counts, counts_h])
         miss |= miss_h
     node = order[by_weight]  # node id of each processed query
     indices = jnp.zeros((n, k), jnp.int32).at[node].set(_pad_cols(ids, k, n))
     return indices, jnp.zeros((n,), jnp.int32).at[node].set(counts), overflow | miss
+
+
+def _has_heavy(spec: GridSpec) -> bool:
+    """Whether the heavy nodes are searched apart (larger capacity or a finer grid)."""
+    return spec.heavy_nodes > 0 and (
+        spec.heavy_capacity > spec.capacity or spec.heavy_cell_size > 0
+    )
+
+
+def _check_shape(spec: GridSpec) -> None:
+    if math.prod(spec.grid_shape) >= 2**31 - 1 or min(spec.grid_shape) < 1:
+        raise ConfigError(f"GridSpec.grid_shape {spec.grid_shape}: need 1 <= cells < 2**31")
 
 
 def _pad_cols(ids, k, n):
@@ -297,7 +333,57 @@ def estimate_capacity(
         cost = (n - n_heavy) * light + n_heavy * heavy
         if best is None or cost < best[0]:
             best = (cost, light, heavy if n_heavy else 0, n_heavy)
-    return dataclasses.replace(spec, capacity=best[1], heavy_capacity=best[2], heavy_nodes=best[3])
+    spec = dataclasses.replace(spec, capacity=best[1], heavy_capacity=best[2], heavy_nodes=best[3])
+    if spec.heavy_nodes and spec.cell_size < r:
+        spec = _finer_heavy_grid(spec, frames, masks, r, max_neighbors, loop, margin, rounded)
+    return spec
+
+
+def _heavy_nodes(frame, mask, spec):
+    """Node ids of the heavy nodes of one frame, chosen exactly as :func:`grid_search` does."""
+    n = len(frame)
+    order, start, end, live = _query_runs(frame, mask, spec, np)
+    end = np.where(mask[order][:, None], end, -1)
+    weight = np.max(np.where(live, end - start, 0), axis=1)
+    heavy = order[np.argsort(weight, kind="stable")[n - min(spec.heavy_nodes, n) :]]
+    return heavy[mask[heavy]]
+
+
+def _finer_heavy_grid(spec, frames, masks, r, k, loop, margin, rounded):
+    """k-nearest mode: give the heavy nodes (dense regions) a finer grid when it is cheaper.
+
+    Its cell is ``margin`` times the largest K-th neighbour distance of the heavy nodes of any
+    frame, its capacity ``margin`` times their largest run in it."""
+    heavy = [_heavy_nodes(f, m, spec) for f, m in zip(frames, masks, strict=True)]
+    kk = k + (0 if loop else 1)
+    kth = 0.0
+    for f, m, h in zip(frames, masks, heavy, strict=True):
+        pts = f[m]
+        if len(h) == 0 or len(pts) < kk:
+            return spec
+        d, _ = cKDTree(pts).query(f[h], k=kk, distance_upper_bound=r)
+        kth = max(kth, float(np.max(d.reshape(len(h), kk)[:, -1])))
+    cell = margin * kth
+    if not np.isfinite(cell) or cell >= 0.8 * spec.cell_size:
+        return spec
+    extent = max(
+        float(np.max(f[m].max(0) - f[m].min(0))) for f, m in zip(frames, masks, strict=True)
+    )
+    n_cells = min(_MAX_CELLS_PER_AXIS, max(1, math.ceil(margin * extent / cell) + 1))
+    fine = GridSpec(cell, (n_cells,) * 3, 1)
+    cap = 0
+    for f, m, h in zip(frames, masks, heavy, strict=True):
+        order, start, end, live = _query_runs(f, m, fine, np)
+        rank = np.empty(len(f), np.int64)
+        rank[order] = np.arange(len(f))
+        runs = np.where(live, end - start, 0)[rank[h]]
+        cap = max(cap, int(np.max(runs)))
+    cap = rounded(cap)
+    if cap >= spec.heavy_capacity:
+        return spec
+    return dataclasses.replace(
+        spec, heavy_capacity=cap, heavy_cell_size=float(cell), heavy_grid_shape=(n_cells,) * 3
+    )
 
 
 def grow(spec: GridSpec, r: float, factor: float = 2.0) -> GridSpec:
@@ -308,4 +394,11 @@ def grow(spec: GridSpec, r: float, factor: float = 2.0) -> GridSpec:
     shape = tuple(max(1, math.ceil(g / scale) + 1) for g in spec.grid_shape)
     cap = int(math.ceil(spec.capacity * factor * scale**3))
     heavy = int(math.ceil(max(spec.heavy_capacity, spec.capacity) * factor * scale**3))
-    return GridSpec(cell, shape, cap, heavy, max(1, int(math.ceil(spec.heavy_nodes * factor))))
+    n_heavy = max(1, int(math.ceil(spec.heavy_nodes * factor)))
+    if spec.heavy_cell_size > 0:  # the finer grid grows alike, its capacity from its own
+        fine = grow(spec.heavy_spec(), r, factor)
+        if fine.cell_size < cell:
+            return GridSpec(
+                cell, shape, cap, fine.capacity, n_heavy, fine.cell_size, fine.grid_shape
+            )
+    return GridSpec(cell, shape, cap, heavy, n_heavy)

@@ -40,7 +40,14 @@ import numpy as np
 from flax import struct
 
 from thrombojax.errors import CapacityOverflowError, ConfigError
-from thrombojax.graph.grid import GridSpec, estimate_capacity, grid_search, grow, smallest_k
+from thrombojax.graph.grid import (
+    GridSpec,
+    _has_heavy,
+    estimate_capacity,
+    grid_search,
+    grow,
+    smallest_k,
+)
 
 __all__ = [
     "AUTO_GRID_MIN_NODES",
@@ -91,7 +98,7 @@ def _grid_pays(grid: GridSpec | None, n: int) -> bool:
     """The grid is worth it when it examines at most half the candidates of the dense method."""
     if grid is None or n < AUTO_GRID_MIN_NODES:
         return False
-    h = min(grid.heavy_nodes, n) if grid.heavy_capacity > grid.capacity else 0
+    h = min(grid.heavy_nodes, n) if _has_heavy(grid) else 0
     return 9 * ((n - h) * grid.capacity + h * grid.heavy_capacity) <= n * n // 2
 
 
