@@ -1,6 +1,8 @@
 """Radius graph: brute-force references (scipy cKDTree), masks, overflow and re-allocation,
 conversions, and the no-N x N-intermediate guarantee at N = 27,000."""
 
+import dataclasses
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -172,6 +174,20 @@ def test_overflow_flag_and_reallocation():
         radius_graph_checked(x, 0.1, K, method="grid", grid=tight, max_retries=1, growth=1.1)
     nbrs, spec = allocate(x[None], 0.1, K, method="grid")
     assert isinstance(spec, GridSpec) and not bool(nbrs.overflow)
+
+
+def test_finer_heavy_grid_overflow_and_growth():
+    """k-nearest mode: the dense clot gets a finer second grid; its buffers are checked too."""
+    x = vessel_frame(2048, seed=9)
+    spec = estimate_capacity(x, 0.56, K)
+    assert 0 < spec.heavy_cell_size < spec.cell_size and spec.heavy_nodes > 0
+    small = dataclasses.replace(spec, heavy_capacity=8)  # runs of the fine grid cut short
+    assert bool(radius_graph(x, 0.56, K, method="grid", grid=small).overflow)
+    coarse = dataclasses.replace(spec, heavy_cell_size=spec.heavy_cell_size / 4)  # K-th beyond
+    assert bool(radius_graph(x, 0.56, K, method="grid", grid=coarse).overflow)
+    nbrs, grown = radius_graph_checked(x, 0.56, K, method="grid", grid=small, max_retries=3)
+    assert grown.heavy_capacity > small.heavy_capacity
+    assert_matches(nbrs, x, 0.56, K, exact_counts=False)
 
 
 def test_no_n_by_n_intermediate_at_27000():

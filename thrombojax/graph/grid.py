@@ -47,13 +47,15 @@ class GridSpec:
     guaranteed to be examined: the K nearest are still exact iff the K-th nearest neighbour of
     each real node lies within ``cell_size``; otherwise ``overflow`` is raised. In this mode
     ``counts`` is the number of neighbours within ``cell_size``: a lower bound of the count
-    within ``r``, ``>= K`` (cap hit) whenever there is no overflow.
+    within ``r``, ``>= K`` (cap hit) whenever there is no overflow. In k-nearest mode the heavy
+    nodes may search a second, finer grid (``heavy_cell_size > 0``): the same guarantee holds
+    with that grid's cell size for them (their ``counts`` are within it).
 
     Attributes:
         cell_size: side of a cell (units of the positions).
         grid_shape: ``(nx, ny, nz)`` cells per axis (each >= 1).
         capacity: slots per run for the light nodes.
-        heavy_capacity: slots per run for the heavy nodes (``>= capacity``).
+        heavy_capacity: slots per run for the heavy nodes (``>= capacity`` on this grid).
         heavy_nodes: number of nodes searched with ``heavy_capacity`` (0: none).
         heavy_cell_size: k-nearest mode only: if > 0, the heavy nodes (dense regions) search a
             second, finer grid of this cell size (their K-th neighbour is closer), with
@@ -292,7 +294,10 @@ def estimate_capacity(
     neighbour within ``r / margin``: then k-nearest mode with ``cell_size = margin * max`` of
     those distances (smaller cells, fewer candidates). The grid spans the largest extent seen
     times ``margin``. Capacities are ``margin`` times the run sizes seen, rounded up to
-    ``multiple``; the light / heavy split minimises the number of candidates examined.
+    ``multiple``; the light / heavy split minimises the number of candidates examined. In
+    k-nearest mode the heavy nodes (the dense clot) then get a finer grid when it reads fewer
+    slots: cell ``margin`` times their largest K-th neighbour distance (on the solver's 27k
+    clotentry frames this cut the grid search from ~0.45 s to ~0.27 s).
 
     Args:
         positions: ``[N, 3]`` or ``[F, N, 3]`` example frames.
@@ -326,17 +331,26 @@ def estimate_capacity(
         return max(multiple, multiple * math.ceil(margin * v / multiple))
 
     best = None
-    for frac in (0.0, 0.01, 0.02, 0.05, 0.1, 0.2, 0.3, 0.5):
+    for frac in (0.0, 0.01, 0.02, 0.05, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6):
         n_heavy = min(n, math.ceil(margin * frac * n))
         light = rounded(max(int(w[max(0, n - n_heavy - 1)]) for w in weights))
         heavy = rounded(max(int(w[-1]) for w in weights))
-        cost = (n - n_heavy) * light + n_heavy * heavy
-        if best is None or cost < best[0]:
-            best = (cost, light, heavy if n_heavy else 0, n_heavy)
-    spec = dataclasses.replace(spec, capacity=best[1], heavy_capacity=best[2], heavy_nodes=best[3])
-    if spec.heavy_nodes and spec.cell_size < r:
-        spec = _finer_heavy_grid(spec, frames, masks, r, max_neighbors, loop, margin, rounded)
-    return spec
+        candidates = [
+            dataclasses.replace(
+                spec, capacity=light, heavy_capacity=heavy if n_heavy else 0, heavy_nodes=n_heavy
+            )
+        ]
+        if n_heavy and cell_size < r:  # k-nearest mode: the heavy nodes may use a finer grid
+            candidates.append(
+                _finer_heavy_grid(
+                    candidates[0], frames, masks, r, max_neighbors, loop, margin, rounded
+                )
+            )
+        for c in candidates:
+            cost = (n - n_heavy) * c.capacity + n_heavy * c.heavy_capacity
+            if best is None or cost < best[0]:
+                best = (cost, c)
+    return best[1]
 
 
 def _heavy_nodes(frame, mask, spec):
@@ -388,17 +402,23 @@ def _finer_heavy_grid(spec, frames, masks, r, k, loop, margin, rounded):
 
 def grow(spec: GridSpec, r: float, factor: float = 2.0) -> GridSpec:
     """A larger spec after an overflow: more capacity and heavy nodes, and in k-nearest mode
-    larger cells."""
+    larger cells. With a finer heavy grid the first grid keeps its cells (so the same nodes
+    stay heavy) and the finer one grows, until it is as coarse as the first."""
+    if spec.heavy_cell_size > 0:
+        fine = grow(spec.heavy_spec(), r, factor)
+        if fine.cell_size < spec.cell_size:
+            cap = int(math.ceil(spec.capacity * factor))
+            return dataclasses.replace(
+                spec,
+                capacity=cap,
+                heavy_capacity=fine.capacity,
+                heavy_cell_size=fine.cell_size,
+                heavy_grid_shape=fine.grid_shape,
+            )
+        spec = dataclasses.replace(spec, heavy_cell_size=0.0, heavy_grid_shape=(1, 1, 1))
     cell = min(r, spec.cell_size * factor ** (1 / 3)) if spec.cell_size < r else spec.cell_size
     scale = cell / spec.cell_size
     shape = tuple(max(1, math.ceil(g / scale) + 1) for g in spec.grid_shape)
     cap = int(math.ceil(spec.capacity * factor * scale**3))
     heavy = int(math.ceil(max(spec.heavy_capacity, spec.capacity) * factor * scale**3))
-    n_heavy = max(1, int(math.ceil(spec.heavy_nodes * factor)))
-    if spec.heavy_cell_size > 0:  # the finer grid grows alike, its capacity from its own
-        fine = grow(spec.heavy_spec(), r, factor)
-        if fine.cell_size < cell:
-            return GridSpec(
-                cell, shape, cap, fine.capacity, n_heavy, fine.cell_size, fine.grid_shape
-            )
-    return GridSpec(cell, shape, cap, heavy, n_heavy)
+    return GridSpec(cell, shape, cap, heavy, max(1, int(math.ceil(spec.heavy_nodes * factor))))
