@@ -34,7 +34,11 @@ __all__ = [
 
 
 def make_input(
-    x_prev: jax.Array, x_cur: jax.Array, node_type: jax.Array, mask: jax.Array
+    x_prev: jax.Array,
+    x_cur: jax.Array,
+    node_type: jax.Array,
+    mask: jax.Array,
+    velocity_scale: jax.Array | float = 1.0,
 ) -> ModelInput:
     """Build the model input of one frame.
 
@@ -43,10 +47,12 @@ def make_input(
         x_cur: ``[n_nodes, 3]`` positions s_t (scaled).
         node_type: ``[n_nodes]`` int NodeType values.
         mask: ``[n_nodes]`` bool, True for real nodes.
+        velocity_scale: the velocity feature is ``(s_t - s_{t-1}) / velocity_scale``
+            (``TargetStats.velocity_std``).
     Returns:
-        The :class:`ModelInput` with velocity ``s_t - s_{t-1}`` (zero on padded nodes).
+        The :class:`ModelInput` with the (normalised) velocity, zero on padded nodes.
     """
-    velocity = jnp.where(mask[:, None], x_cur - x_prev, 0.0)
+    velocity = jnp.where(mask[:, None], (x_cur - x_prev) / velocity_scale, 0.0)
     return ModelInput(
         positions=x_cur,
         velocity=velocity,
@@ -102,7 +108,7 @@ def predict_next(
         ``(x_next [n_nodes, 3], out [n_nodes, 3])``: the next positions and the raw
         (normalised) model output.
     """
-    inputs = make_input(x_prev, x_cur, node_type, mask)
+    inputs = make_input(x_prev, x_cur, node_type, mask, stats.velocity_std)
     graph = model.build_graph(inputs)
     out = model.apply(params, inputs, graph, train=train, rng=rng)
     accel = stats.denormalize(out)
@@ -143,7 +149,7 @@ def rollout_step(
         ``((s_t, s_{t+1}), (s_{t+1} [n_nodes, 3], overflow bool[]))``.
     """
     x_prev, x_cur = carry
-    inputs = make_input(x_prev, x_cur, node_type, mask)
+    inputs = make_input(x_prev, x_cur, node_type, mask, stats.velocity_std)
     graph = model.build_graph(inputs)
     out = model.apply(params, inputs, graph, train=False, rng=None)
     x_next = integrate(x_prev, x_cur, stats.denormalize(out), node_type, mask)

@@ -79,18 +79,23 @@ class ModelInput:
 
 @struct.dataclass
 class TargetStats:
-    """Normalisation statistics of the per-node update (acceleration), from the training split.
+    """Normalisation statistics of the model's output and velocity input, from the training split.
 
     The model predicts ``(a - mean) / std`` per axis, with
-    ``a = s_{t+1} - 2 s_t + s_{t-1}`` in scaled coordinates.
+    ``a = s_{t+1} - 2 s_t + s_{t-1}`` in scaled coordinates, and sees the velocity feature
+    ``v_t / velocity_std`` (like DeepMind's input normalisers): raw per-frame velocities in
+    [-1, 1] coordinates are ~1e-3, far too small for a network's first layer to resolve.
 
     Attributes:
         mean: ``[3]`` float32.
         std: ``[3]`` float32, strictly positive.
+        velocity_std: ``[]`` float32, strictly positive: the RMS of one velocity component over
+            the training clot nodes (one number, so rotations keep their meaning).
     """
 
     mean: jax.Array
     std: jax.Array
+    velocity_std: jax.Array = 1.0
 
     def normalize(self, accel: jax.Array) -> jax.Array:
         return (accel - self.mean) / self.std
@@ -99,8 +104,16 @@ class TargetStats:
         return out * self.std + self.mean
 
     def to_dict(self) -> dict:
-        return {"mean": np.asarray(self.mean).tolist(), "std": np.asarray(self.std).tolist()}
+        return {
+            "mean": np.asarray(self.mean).tolist(),
+            "std": np.asarray(self.std).tolist(),
+            "velocity_std": float(np.asarray(self.velocity_std)),
+        }
 
     @classmethod
     def from_dict(cls, d: dict) -> TargetStats:
-        return cls(mean=jnp.asarray(d["mean"], jnp.float32), std=jnp.asarray(d["std"], jnp.float32))
+        return cls(
+            mean=jnp.asarray(d["mean"], jnp.float32),
+            std=jnp.asarray(d["std"], jnp.float32),
+            velocity_std=jnp.asarray(d.get("velocity_std", 1.0), jnp.float32),
+        )

@@ -220,13 +220,17 @@ def compute_target_stats(
       rotated samples: a clot moving in a plane has a near-zero standard deviation along the
       plane's normal, and a rotated sample's acceleration along that axis would be blown up.
 
+    ``velocity_std`` is the isotropic RMS ``sqrt(E|v|^2 / 3)`` of ``v_t = s_t - s_{t-1}`` over
+    the same clot nodes (one number for all axes, so it is rotation-invariant).
+
     A standard deviation below ``min_std`` is raised to it.
 
     Returns:
-        :class:`TargetStats` with ``mean [3]``, ``std [3]``.
+        :class:`TargetStats` with ``mean [3]``, ``std [3]``, ``velocity_std []``.
     """
     total = np.zeros(3)
     total_sq = np.zeros(3)
+    vel_sq = 0.0
     count = 0
     for sim, pos in enumerate(store.positions):
         times = store.windows[store.windows[:, 0] == sim, 1]
@@ -237,6 +241,7 @@ def compute_target_stats(
         accel = p[times + 1] - 2.0 * p[times] + p[times - 1]
         total += accel.sum(axis=(0, 1))
         total_sq += (accel**2).sum(axis=(0, 1))
+        vel_sq += float(((p[times] - p[times - 1]) ** 2).sum())
         count += accel.shape[0] * accel.shape[1]
     if count == 0:
         raise DatasetError(f"simulations {list(store.names)}: field 'node_type': no clot nodes")
@@ -246,4 +251,9 @@ def compute_target_stats(
         mean = np.zeros(3)
         std = np.full(3, np.sqrt(total_sq.sum() / count / 3.0))
     std = np.maximum(std, min_std)
-    return TargetStats(mean=jnp.asarray(mean, jnp.float32), std=jnp.asarray(std, jnp.float32))
+    velocity_std = max(np.sqrt(vel_sq / count / 3.0), min_std)
+    return TargetStats(
+        mean=jnp.asarray(mean, jnp.float32),
+        std=jnp.asarray(std, jnp.float32),
+        velocity_std=jnp.asarray(velocity_std, jnp.float32),
+    )

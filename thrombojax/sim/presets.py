@@ -40,6 +40,8 @@ class Preset:
         penetration_cap: hard cap on penetration / radius (normal velocity clamp).
         elem_bulk: cap of the per-element bulk modulus, in shear moduli (material.py).
         contact_damping: normal damping ratio; min_alpha: lower bound of mass damping.
+        internal_damping: rate of the damping of motion relative to the clot's mean velocity
+            (elastic vibrations), so frames are smooth and quasi-static, like an implicit solve.
         safety: fraction of the stable substep; exit_margin: distance past the outlet.
         outlet_flare, outlet_flare_length: the outlet widens by this fraction of its radius
             over this length (cases.build_vessel).
@@ -85,6 +87,7 @@ class Preset:
     elem_bulk: float = 4.0
     contact_damping: float = 0.5
     min_alpha: float = 0.5
+    internal_damping: float = 2.0
     safety: float = 0.5
     exit_margin: float = 0.5
     outlet_flare: float = 0.3

@@ -65,7 +65,7 @@ def sample_loss_terms(
         and averaged over x, y, z; the number of clot nodes; the graph overflow flag.
     """
     x_prev, x_cur, x_next = frames[0], frames[1], frames[2]
-    inputs = make_input(x_prev, x_cur, node_type, mask)
+    inputs = make_input(x_prev, x_cur, node_type, mask, stats.velocity_std)
     graph = model.build_graph(inputs)
     out = model.apply(params, inputs, graph, train=train, rng=rng)
     target = stats.normalize(target_acceleration(x_prev, x_cur, x_next))
