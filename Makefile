@@ -20,11 +20,11 @@ demo: $(STAMP)
 	$(BIN)/python -m thrombojax.demo --out demo_output
 
 test: $(STAMP)
-	$(BIN)/ruff check thrombojax tests benchmarks experiments
+	$(BIN)/ruff check thrombojax tests benchmarks
 	$(BIN)/python -m pytest -q -n 2 --dist loadfile
 
 lint: $(STAMP)
-	$(BIN)/ruff check thrombojax tests benchmarks experiments
+	$(BIN)/ruff check thrombojax tests benchmarks
 
 clean:
 	rm -rf $(VENV) .jax_cache demo_output .pytest_cache
