@@ -67,8 +67,12 @@ def reference(x, r, k, mask=None, loop=False):
     return ids, d
 
 
-def assert_matches(nbrs, x, r, k, mask=None, loop=False, exact_counts=True):
-    """Same neighbours as the reference up to float32 ties (distances compared), sentinels."""
+def assert_matches(nbrs, x, r, k, mask=None, loop=False, exact_counts=True, min_same_rows=0.99):
+    """Same neighbours as the reference up to float32 ties (distances compared), sentinels.
+
+    ``min_same_rows``: fraction of rows whose indices equal the reference's exactly; structured
+    meshes (rings of wall points) have many exact distance ties whose order is arbitrary.
+    """
     n = len(x)
     ids, counts = np.asarray(nbrs.indices), np.asarray(nbrs.counts)
     assert ids.shape == (n, k) and ids.dtype == np.int32 and not bool(nbrs.overflow)
@@ -81,7 +85,7 @@ def assert_matches(nbrs, x, r, k, mask=None, loop=False, exact_counts=True):
     np.testing.assert_allclose(d, ref_d, atol=2e-6)
     assert np.all(np.diff(np.where(valid, d, 9.0), axis=1) >= -2e-6), "not nearest first"
     same_rows = np.all(np.where(valid, ids, -1) == ref_ids, axis=1)
-    assert same_rows.mean() >= 0.99  # index-identical except float32 near-ties
+    assert same_rows.mean() >= min_same_rows  # index-identical except float32 near-ties
     if exact_counts:
         real = np.ones(n, bool) if mask is None else np.asarray(mask)
         tree = cKDTree(x64[real])
