@@ -68,13 +68,9 @@ def synthetic_batch(batch_size: int, n_nodes: int, seed: int = 0) -> Batch:
                  generated=np.zeros(batch_size, bool))
 
 
-def bench(name: str, n_nodes: int, steps: int, remat: bool = False) -> dict:
-    """Compile and steady-state time of one training step of a study config.
-
-    ``remat`` recomputes MeshGraphNet's processor activations in the backward pass (the only
-    way a ClotEntry batch of 8 x 2,048 nodes fits a 24 GB host); other models ignore it.
-    """
-    config = get_config(name, **({"remat": True} if remat and name == "mgn" else {}))
+def bench(name: str, n_nodes: int, steps: int) -> dict:
+    """Compile and steady-state time of one training step of a study config."""
+    config = get_config(name)
     model = create_model(name, config)
     batch_size = config.batch_size
     mesh = data_mesh()
@@ -105,8 +101,7 @@ def bench(name: str, n_nodes: int, steps: int, remat: bool = False) -> dict:
     dataset, per_epoch = SAMPLES_PER_EPOCH.get(n_nodes, ("custom", 1000))
     samples_per_s = batch_size / step_s
     return {
-        "model": name + (" (remat)" if remat and name == "mgn" else ""), "dataset": dataset,
-        "nodes": n_nodes, "batch": batch_size,
+        "model": name, "dataset": dataset, "nodes": n_nodes, "batch": batch_size,
         "compile_s": compile_s, "step_ms": 1e3 * step_s, "samples_per_s": samples_per_s,
         "epoch_s": per_epoch / samples_per_s,
         "300_epochs_h": EPOCHS * per_epoch / samples_per_s / 3600,
@@ -120,8 +115,6 @@ def main() -> None:
     parser.add_argument("--sizes", nargs="+", type=int, default=[977, 2048])
     parser.add_argument("--steps", type=int, default=None,
                         help="timed steps (default: 50 on an accelerator, 3 on CPU)")
-    parser.add_argument("--remat", action="store_true",
-                        help="MeshGraphNet with rematerialised processor blocks (less memory)")
     args = parser.parse_args()
     device = jax.devices()[0]
     steps = args.steps or (3 if device.platform == "cpu" else 50)
@@ -143,7 +136,7 @@ def main() -> None:
     for name in args.models:
         for n in args.sizes:
             try:
-                r = bench(name, n, steps, remat=args.remat)
+                r = bench(name, n, steps)
             except jax.errors.JaxRuntimeError as err:  # e.g. RESOURCE_EXHAUSTED on a small host
                 print(f"| {name} | {SAMPLES_PER_EPOCH.get(n, ('custom',))[0]} | {n} | - | "
                       f"failed: {str(err).splitlines()[0][:80]} |||||", flush=True)

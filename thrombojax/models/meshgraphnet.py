@@ -57,37 +57,11 @@ def edge_features(positions: jax.Array, graph: NeighborList) -> jax.Array:
     return jnp.concatenate([dx, dist], axis=-1)
 
 
-class ProcessorBlock(nn.Module):
-    """One unshared message-passing block: edge update, then node update, both residual.
-
-    Attributes:
-        hidden: latent width. mlp_layers: hidden layers per MLP.
-    """
-
-    hidden: int
-    mlp_layers: int
-
-    @nn.compact
-    def __call__(self, nodes, edges, senders, receivers):
-        """``nodes [N+1, H]``, ``edges [E, H]``, ``senders/receivers [E]`` -> updated pair."""
-        widths = (self.hidden,) * self.mlp_layers + (self.hidden,)
-        edge_in = jnp.concatenate([edges, nodes[senders], nodes[receivers]], axis=-1)
-        edges = edges + MLP(widths, activation=jax.nn.relu, layer_norm=True, name="edge")(edge_in)
-        agg = jraph.segment_sum(edges, receivers, num_segments=nodes.shape[0])
-        node_in = jnp.concatenate([nodes, agg], axis=-1)
-        nodes = nodes + MLP(widths, activation=jax.nn.relu, layer_norm=True, name="node")(node_in)
-        return nodes, edges
-
-
 class MeshGraphNet(nn.Module):
     """The MeshGraphNet network on one sample.
 
     Attributes:
-        config: :class:`~thrombojax.models.registry.MeshGraphNetConfig`. With
-            ``config.remat`` each processor block's activations are recomputed in the backward
-            pass (``flax.linen.remat``): about a third more compute for a memory cost of one
-            block instead of all of them (ClotEntry batches of 8 x 2,048 nodes need ~27 GB
-            without it).
+        config: :class:`~thrombojax.models.registry.MeshGraphNetConfig`.
     """
 
     config: MeshGraphNetConfig
@@ -109,17 +83,19 @@ class MeshGraphNet(nn.Module):
         Returns:
             ``[n_nodes, 3]``.
         """
-        cfg = self.config
+        hidden = self.config.hidden
         n = inputs.n_nodes
         g: jraph.GraphsTuple = to_graphs_tuple(
             graph, node_features(inputs), edge_features(inputs.positions, graph)
         )
-        nodes = self._mlp(cfg.hidden, norm=True, name="node_encoder")(g.nodes)  # [N+1, H]
-        edges = self._mlp(cfg.hidden, norm=True, name="edge_encoder")(g.edges)  # [N*K, H]
-        block_cls = nn.remat(ProcessorBlock) if cfg.remat else ProcessorBlock
-        for b in range(cfg.processor_size):
-            block = block_cls(cfg.hidden, cfg.mlp_layers, name=f"processor_{b}")
-            nodes, edges = block(nodes, edges, g.senders, g.receivers)
+        nodes = self._mlp(hidden, norm=True, name="node_encoder")(g.nodes)  # [N+1, H]
+        edges = self._mlp(hidden, norm=True, name="edge_encoder")(g.edges)  # [N*K, H]
+        for b in range(self.config.processor_size):
+            edge_in = jnp.concatenate([edges, nodes[g.senders], nodes[g.receivers]], axis=-1)
+            edges = edges + self._mlp(hidden, norm=True, name=f"edge_block_{b}")(edge_in)
+            agg = jraph.segment_sum(edges, g.receivers, num_segments=n + 1)
+            node_in = jnp.concatenate([nodes, agg], axis=-1)
+            nodes = nodes + self._mlp(hidden, norm=True, name=f"node_block_{b}")(node_in)
         return self._mlp(OUTPUT_DIM, norm=False, name="decoder")(nodes[:n])
 
 

@@ -65,7 +65,6 @@ class MeshGraphNetConfig:
         radius: radius of the world-edge graph in scaled coordinates.
         max_neighbors: neighbour cap per node (torch_cluster's default 32).
         batch_size, learning_rate: the study's training settings (lr printed "10E-04" = 1e-3).
-        remat: recompute processor activations in the backward pass (saves memory).
     """
 
     hidden: int = 64
@@ -75,7 +74,6 @@ class MeshGraphNetConfig:
     max_neighbors: int = 32
     batch_size: int = 8
     learning_rate: float = 1e-3
-    remat: bool = False
 
     def __post_init__(self) -> None:
         _check_positive(self, "hidden", "processor_size", "mlp_layers", "radius", "max_neighbors")
