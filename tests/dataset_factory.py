@@ -147,3 +147,25 @@ BAD_FILES: dict[str, tuple[Callable[[Path], Path], str | None, str | None]] = {
     "corrupt_file": (_garbage, None, None),
     "not_a_dataset": (_no_format, None, "format"),
 }
+
+
+def synthetic_window(seed=0, n_vessel=40, n_clot=24, n_pad=8):
+    """A synthetic window (scaled coordinates): a ring of vessel nodes and a moving, deforming
+    clot blob whose acceleration differs per node, plus padded nodes.
+
+    Returns:
+        ``(frames [3, N, 3] float32, node_type [N] int32, mask [N] bool)``.
+    """
+    rng = np.random.default_rng(seed)
+    ang = np.linspace(0, 2 * np.pi, n_vessel, endpoint=False)
+    z = 0.1 * rng.standard_normal(n_vessel)
+    vessel = np.stack([0.6 * np.cos(ang), 0.6 * np.sin(ang), z], 1)
+    clot = 0.15 * rng.standard_normal((n_clot, 3))
+    frames = []
+    for k in range(3):
+        shift = np.array([0.02 * k + 0.01 * k * k, 0.0, 0.01 * k])
+        c = clot * (1 + 0.05 * k + 0.03 * k * k) + shift
+        frames.append(np.concatenate([vessel, c, np.zeros((n_pad, 3))]))
+    node_type = np.array([0] * n_vessel + [1] * n_clot + [0] * n_pad, np.int32)
+    mask = np.array([True] * (n_vessel + n_clot) + [False] * n_pad)
+    return np.asarray(frames, np.float32), node_type, mask

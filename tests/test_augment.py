@@ -5,6 +5,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from dataset_factory import synthetic_window
 
 from thrombojax.data.augment import (
     AugmentConfig,
@@ -22,24 +23,8 @@ from thrombojax.graph.triangles import find_triangles
 from thrombojax.types import NodeType
 
 
-def _window(n_vessel=40, n_clot=24, n_pad=8, seed=0):
-    """A synthetic window: a ring of vessel nodes and a moving, deforming clot blob."""
-    rng = np.random.default_rng(seed)
-    ang = np.linspace(0, 2 * np.pi, n_vessel, endpoint=False)
-    z = 0.1 * rng.standard_normal(n_vessel)
-    vessel = np.stack([0.6 * np.cos(ang), 0.6 * np.sin(ang), z], 1)
-    clot = 0.15 * rng.standard_normal((n_clot, 3))
-    frames = []
-    for k in range(3):
-        shift = np.array([0.02 * k + 0.01 * k * k, 0.0, 0.01 * k])
-        c = clot * (1 + 0.05 * k + 0.03 * k * k) + shift
-        frames.append(np.concatenate([vessel, c, np.zeros((n_pad, 3))]))
-    frames = np.asarray(frames, np.float32)
-    node_type = np.concatenate(
-        [np.zeros(n_vessel), np.ones(n_clot), np.zeros(n_pad)]
-    ).astype(np.int32)
-    mask = np.concatenate([np.ones(n_vessel + n_clot), np.zeros(n_pad)]).astype(bool)
-    return frames, node_type, mask
+def _window(seed=0):
+    return synthetic_window(seed)
 
 
 def _pairwise(x):

@@ -4,6 +4,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from dataset_factory import synthetic_window
 
 from thrombojax.data.batching import Batch
 from thrombojax.models.registry import MODEL_NAMES, create_model, get_config
@@ -17,21 +18,9 @@ from thrombojax.types import NodeType, TargetStats
 TRAINABLE = [name for name in MODEL_NAMES if name != "constant_velocity"]
 
 
-def _window(seed, n_vessel=40, n_clot=20, n_pad=4):
+def _window(seed):
     """A ring of vessel nodes and a clot blob whose acceleration depends on the node."""
-    rng = np.random.default_rng(seed)
-    ang = np.linspace(0, 2 * np.pi, n_vessel, endpoint=False)
-    z = 0.1 * rng.standard_normal(n_vessel)
-    vessel = np.stack([0.6 * np.cos(ang), 0.6 * np.sin(ang), z], 1)
-    clot = 0.15 * rng.standard_normal((n_clot, 3))
-    frames = []
-    for k in range(3):
-        shift = np.array([0.02 * k + 0.01 * k * k, 0.0, 0.01 * k])
-        c = clot * (1 + 0.05 * k + 0.03 * k * k) + shift
-        frames.append(np.concatenate([vessel, c, np.zeros((n_pad, 3))]))
-    node_type = np.array([0] * n_vessel + [1] * n_clot + [0] * n_pad, np.int32)
-    mask = np.array([True] * (n_vessel + n_clot) + [False] * n_pad)
-    return np.asarray(frames, np.float32), node_type, mask
+    return synthetic_window(seed, n_clot=20, n_pad=4)
 
 
 def _batch(n=4):
