@@ -149,8 +149,7 @@ def build_case(preset: Preset, index: int, seed: int) -> Case:
         mass=f(clotmesh.lumped_masses(rest, tets)), area=f(clotmesh.nodal_areas(x0, tets)),
         mu=f(mu), kappa=f(kappa), k_contact=f(k_contact),
         zeta=f(preset.contact_damping), friction=f(drawn["friction"]), drive=f(drive),
-        ramp_time=f(preset.ramp_time), alpha=f(alpha), beta=f(preset.internal_damping),
-        dt=f(0.0),
+        ramp_time=f(preset.ramp_time), alpha=f(alpha), dt=f(0.0),
         exit_margin=f(preset.exit_margin), pen_cap=f(preset.penetration_cap),
     )  # fmt: skip
     dt = stable_dt(params, jnp.asarray(tets), safety=preset.safety, elem_bulk=preset.elem_bulk)
@@ -164,8 +163,7 @@ def build_case(preset: Preset, index: int, seed: int) -> Case:
         "rotation_deg": rotation_deg, "rotation_axis": preset.rotation_axis,
         "clot_length": preset.clot_length, "clot_rest_radius": rest_radius,
         "clot_rest_length": preset.clot_length / stretch, "local_radius": r_ref,
-        "drive": drive, "damping_alpha": alpha, "internal_damping": preset.internal_damping,
-        "contact_pressure_estimate": pressure,
+        "drive": drive, "damping_alpha": alpha, "contact_pressure_estimate": pressure,
         "contact_stiffness": k_contact,
         "shear_modulus": mu, "bulk_modulus": kappa, "substep_dt": float(params.dt),
         "substep_dt_wave_estimate": h_min / np.sqrt(kappa + 4.0 * mu / 3.0),

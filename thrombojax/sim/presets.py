@@ -40,10 +40,6 @@ class Preset:
         penetration_cap: hard cap on penetration / radius (normal velocity clamp).
         elem_bulk: cap of the per-element bulk modulus, in shear moduli (material.py).
         contact_damping: normal damping ratio; min_alpha: lower bound of mass damping.
-        internal_damping: rate of the damping of motion relative to the clot's mean velocity
-            (elastic vibrations). Off by default: at 2.0 it made BendVessel frames smoother
-            (kinetic/elastic 0.59 -> 0.51) but a ClotEntry clot then failed to squeeze through
-            a narrowing within the substep cap.
         safety: fraction of the stable substep; exit_margin: distance past the outlet.
         outlet_flare, outlet_flare_length: the outlet widens by this fraction of its radius
             over this length (cases.build_vessel).
@@ -89,7 +85,6 @@ class Preset:
     elem_bulk: float = 4.0
     contact_damping: float = 0.5
     min_alpha: float = 0.5
-    internal_damping: float = 0.0
     safety: float = 0.5
     exit_margin: float = 0.5
     outlet_flare: float = 0.3

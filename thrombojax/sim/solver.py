@@ -6,8 +6,6 @@ One substep (semi-implicit Euler, lumped mass ``m``)::
         - (k A pen + c vn) n                           wall penalty + normal damping, n outward
     a   = f / m + g(t) t(x)                            drive: body acceleration along the tangent
     v*  = (v + dt a) / (1 + alpha dt)                  mass-proportional damping, implicit
-    v*  = vbar + (v* - vbar) / (1 + beta dt)           internal damping of the motion relative
-                                                       to the clot's mean velocity vbar, implicit
     v_n <= (phi + pen_cap r) / dt                      hard penetration cap (rarely active)
     v'  = Coulomb cap on the tangential part of v*     stick if |v_t| <= mu (dt k A pen / m
                                                                               + cut v_n)
@@ -59,8 +57,6 @@ class CaseParams:
         mu, kappa: shear and bulk moduli; k_contact: penalty stiffness per unit area;
         zeta: contact damping ratio; friction: Coulomb coefficient; drive: final body
         acceleration; ramp_time: time of the linear drive ramp; alpha: mass damping;
-        beta: internal damping rate (relative to the clot's mass-weighted mean velocity: it
-        damps elastic vibrations, not the clot's travel);
         dt: substep; exit_margin: distance past the outlet that counts as "out";
         pen_cap: largest penetration / radius allowed (normal velocity clamp).
     """
@@ -80,7 +76,6 @@ class CaseParams:
     drive: jnp.ndarray
     ramp_time: jnp.ndarray
     alpha: jnp.ndarray
-    beta: jnp.ndarray
     dt: jnp.ndarray
     exit_margin: jnp.ndarray
     pen_cap: jnp.ndarray
@@ -163,8 +158,6 @@ def _substep(p: CaseParams, cl: Centreline, grad, carry):
     g = p.drive * jnp.minimum(1.0, step * p.dt / p.ramp_time)
     acc = force / p.mass[:, None] + g * geo["tangent"]
     v1 = (v + p.dt * acc) / (1.0 + p.alpha * p.dt)
-    vbar = jnp.sum(p.mass[:, None] * v1, axis=0) / jnp.sum(p.mass)
-    v1 = vbar + (v1 - vbar) / (1.0 + p.beta * p.dt)
     vn1 = jnp.sum(v1 * n, axis=1)
     vt = v1 - vn1[:, None] * n
     # hard cap: no node ends the substep deeper than pen_cap * r (linearised wall)
