@@ -169,3 +169,20 @@ def synthetic_window(seed=0, n_vessel=40, n_clot=24, n_pad=8):
     node_type = np.array([0] * n_vessel + [1] * n_clot + [0] * n_pad, np.int32)
     mask = np.array([True] * (n_vessel + n_clot) + [False] * n_pad)
     return np.asarray(frames, np.float32), node_type, mask
+
+
+def random_model_input(n_real=30, n_pad=10, seed=0):
+    """A random cloud of ``n_real`` nodes plus ``n_pad`` padded nodes carrying garbage values,
+    as a :class:`thrombojax.types.ModelInput` (model tests)."""
+    import jax
+    import jax.numpy as jnp
+
+    from thrombojax.types import ModelInput
+
+    k = jax.random.split(jax.random.key(seed), 4)
+    n = n_real + n_pad
+    pos = jax.random.uniform(k[0], (n, 3), minval=-0.6, maxval=0.6)
+    vel = 0.02 * jax.random.normal(k[1], (n, 3))
+    node_type = jax.random.bernoulli(k[2], 0.5, (n,)).astype(jnp.int32)
+    mask = jnp.arange(n) < n_real
+    return ModelInput(positions=pos, velocity=vel, node_type=node_type, mask=mask)

@@ -4,23 +4,16 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from dataset_factory import random_model_input
 
 from thrombojax.models import create_model, get_config
 from thrombojax.models.meshgraphnet import MeshGraphNetSurrogate
-from thrombojax.types import ModelInput
 
 N_REAL, N_PAD = 30, 10
 
 
 def _inputs(n_real=N_REAL, n_pad=N_PAD, seed=0):
-    """A random cloud of ``n_real`` nodes plus ``n_pad`` padded nodes carrying garbage values."""
-    k = jax.random.split(jax.random.key(seed), 4)
-    n = n_real + n_pad
-    pos = jax.random.uniform(k[0], (n, 3), minval=-0.6, maxval=0.6)
-    vel = 0.02 * jax.random.normal(k[1], (n, 3))
-    node_type = jax.random.bernoulli(k[2], 0.5, (n,)).astype(jnp.int32)
-    mask = jnp.arange(n) < n_real
-    return ModelInput(positions=pos, velocity=vel, node_type=node_type, mask=mask)
+    return random_model_input(n_real, n_pad, seed)
 
 
 @pytest.fixture(scope="module")

@@ -37,6 +37,7 @@ from thrombojax.io.schema import (
     KNOWN_NODE_TYPES,
     VESSEL_TOLERANCE,
     Simulation,
+    check_positions_shape,
     decode_attrs,
     encode_attrs,
     natural_key,
@@ -277,11 +278,7 @@ class Dataset(Mapping[str, Simulation]):
         pos = field("positions")
         if pos.dtype != np.float32:
             raise fail("positions", f"wrong dtype {pos.dtype}, expected float32")
-        if pos.ndim != 3 or pos.shape[2] != 3:
-            raise fail("positions", f"wrong shape {pos.shape}, expected [frames, nodes, 3]")
-        n_frames, n_nodes = pos.shape[:2]
-        if n_frames == 0 or n_nodes == 0:
-            raise fail("positions", f"empty simulation ({n_frames} frames, {n_nodes} nodes)")
+        n_frames, n_nodes = check_positions_shape(pos.shape, fail)
         nt = field("node_type")
         if nt.dtype.kind not in "iu" or nt.ndim != 1:
             raise fail("node_type", f"wrong dtype/shape {nt.dtype} {nt.shape}, expected int8 [N]")

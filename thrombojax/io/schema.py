@@ -31,6 +31,7 @@ from thrombojax.types import NodeType
 __all__ = [
     "Simulation",
     "validate_simulation",
+    "check_positions_shape",
     "simulation_error",
     "encode_attrs",
     "decode_attrs",
@@ -101,6 +102,22 @@ def natural_key(name: str) -> list:
     return [int(tok) if tok.isdigit() else tok.lower() for tok in re.split(r"(\d+)", name)]
 
 
+def check_positions_shape(shape: tuple[int, ...], fail) -> tuple[int, int]:
+    """Check that ``positions`` is a non-empty ``[frames, nodes, 3]`` array; return (T, N).
+
+    Shared by validation in memory and the reader's metadata check (before any data is read).
+
+    Args:
+        shape: the array's shape. fail: ``fail(field, problem) -> DatasetError``.
+    """
+    if len(shape) != 3 or shape[2] != 3:
+        raise fail("positions", f"wrong shape {tuple(shape)}, expected [frames, nodes, 3]")
+    n_frames, n_nodes = int(shape[0]), int(shape[1])
+    if n_frames == 0 or n_nodes == 0:
+        raise fail("positions", f"empty simulation ({n_frames} frames, {n_nodes} nodes)")
+    return n_frames, n_nodes
+
+
 def validate_simulation(
     sim: Simulation, *, path: Any = "<memory>", vessel_tol: float = VESSEL_TOLERANCE
 ) -> None:
@@ -131,11 +148,7 @@ def validate_simulation(
         raise fail("positions", f"expected a numpy array, got {type(pos).__name__}")
     if pos.dtype.kind != "f":
         raise fail("positions", f"wrong dtype {pos.dtype}, expected float32")
-    if pos.ndim != 3 or pos.shape[2] != 3:
-        raise fail("positions", f"wrong shape {pos.shape}, expected [frames, nodes, 3]")
-    n_frames, n_nodes = pos.shape[:2]
-    if n_frames == 0 or n_nodes == 0:
-        raise fail("positions", f"empty simulation ({n_frames} frames, {n_nodes} nodes)")
+    _, n_nodes = check_positions_shape(pos.shape, fail)
     _check_finite(pos, fail)
 
     nt = sim.node_type
