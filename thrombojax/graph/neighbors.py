@@ -4,7 +4,7 @@ Conventions (every model relies on them):
 
 * ``NeighborList.indices[i]`` lists the neighbours ``j`` of node ``i``: the ``K = max_neighbors``
   *nearest* nodes with ``|x_i - x_j| < r`` (strict), sorted by distance, nearest first (exact
-  ties: a fixed pseudo-random column order for the dense method, cell order for the grid).
+  ties: Morton order for the dense method, cell order for the grid).
   Empty slots hold the sentinel ``N`` (``N`` = number of rows, padding included).
 * Cap semantics: like torch_cluster's ``max_num_neighbors`` a node keeps at most ``K`` neighbours,
   but torch_cluster keeps the *first K found* (search order) while we keep the *K nearest*. The
@@ -20,22 +20,16 @@ Conventions (every model relies on them):
   ``segment_sum(..., num_segments=N)`` drops it and with one dummy node appended it lands there.
 
 Methods: ``"dense"`` compares each row tile with all nodes (``lax.map`` over tiles of
-``tile_rows`` rows; peak memory ``tile_rows x N``, never ``N x N``); ``"grid"`` hashes nodes
-into cells (see :class:`GridSpec`) and compares each node with the nodes of its 27 surrounding
-cells only; ``"auto"`` picks ``"grid"`` when a :class:`GridSpec` is given,
+``tile_rows`` rows; peak memory ``tile_rows x N``, never ``N x N``) and selects the K nearest
+exactly among the nearest Morton blocks of nodes (:mod:`thrombojax.graph.dense`); ``"grid"``
+hashes nodes into cells (see :class:`GridSpec`) and compares each node with the nodes of its
+27 surrounding cells only; ``"auto"`` picks ``"grid"`` when a :class:`GridSpec` is given,
 ``N >= AUTO_GRID_MIN_NODES`` and the grid examines at most half as many candidates as the dense
 method (about ``9 * capacity`` per node against ``N``), else ``"dense"``.
 
-CPU speed (``benchmarks/graphs.py``, 2 shared cores, study radii, K = 32): distances are
-computed per coordinate on ``[tile, N]`` arrays (a ``[tile, N, 3]`` difference reduced over its
-last axis does not vectorise: ~5x slower), tiles are small enough to stay in cache, candidate
-columns are visited in a fixed shuffled order (``lax.top_k`` is slower on the spatially coherent
-orders of solver meshes), and rows of ``>= 8192`` candidates select in two stages
-(:func:`thrombojax.graph.grid.smallest_k`). Exact ties at equal distance are therefore broken
-by that fixed column order, not by node index (the set of distances is unchanged). At
-N = 2,048 the dense method takes about 19-21 ms (load 2-3; ``lax.top_k`` over the 2,048
-columns is ~80 % of it); at N = 27,000 the grid with a finer second grid for the dense clot
-takes ~270-290 ms, the dense method ~0.9-2.8 s.
+CPU speed (``benchmarks/graphs.py``, recorded in ``benchmarks/results/graphs_cpu.json``; 2
+cores, study radii, K = 32): dense ~9-11 ms at N = 2,048; at N = 27,000 the grid ~0.25 s, the
+dense method ~0.5 s.
 """
 
 from __future__ import annotations
@@ -49,14 +43,8 @@ import numpy as np
 from flax import struct
 
 from thrombojax.errors import CapacityOverflowError, ConfigError
-from thrombojax.graph.grid import (
-    GridSpec,
-    _has_heavy,
-    estimate_capacity,
-    grid_search,
-    grow,
-    smallest_k,
-)
+from thrombojax.graph.dense import dense_search
+from thrombojax.graph.grid import GridSpec, _has_heavy, estimate_capacity, grid_search, grow
 
 __all__ = [
     "AUTO_GRID_MIN_NODES",
@@ -74,10 +62,6 @@ __all__ = [
 
 AUTO_GRID_MIN_NODES: int = 4096
 """``method="auto"`` uses the grid only from this many nodes on (below, dense is as fast)."""
-
-_TILE_ELEMENTS = 1 << 19  # dense method: tile_rows * N <= this (smaller tiles stay in cache)
-_MIN_TILE_ROWS = 16
-_SHUFFLE_COLUMNS = True
 
 
 @struct.dataclass
@@ -111,55 +95,9 @@ def _grid_pays(grid: GridSpec | None, n: int) -> bool:
     return 9 * ((n - h) * grid.capacity + h * grid.heavy_capacity) <= n * n // 2
 
 
-def _select_k(d2, cand, k, sentinel):
-    """K smallest of ``d2 [T, M]`` -> ``cand [M]`` ids ``[T, K]`` nearest first, sentinel if inf."""
-    m = d2.shape[-1]
-    kk = min(k, m)
-    vals, pos = smallest_k(d2, kk)
-    ids = jnp.where(jnp.isfinite(vals), cand[pos], sentinel).astype(jnp.int32)
-    if kk < k:
-        ids = jnp.pad(ids, ((0, 0), (0, k - kk)), constant_values=sentinel)
-    return ids
-
-
-def _column_order(n: int) -> np.ndarray:
-    """The dense method's static order of candidate columns ``[N]`` int32 (see ``_dense``)."""
-    if not _SHUFFLE_COLUMNS:
-        return np.arange(n, dtype=np.int32)
-    return np.random.default_rng(0).permutation(n).astype(np.int32)
-
-
 def _dense(positions, r, k, mask, loop, tile_rows):
-    n = positions.shape[0]
-    t = tile_rows or min(n, max(_MIN_TILE_ROWS, _TILE_ELEMENTS // max(n, 1)))
-    n_tiles = -(-n // t)
-    pad = n_tiles * t - n
-    rows = jnp.arange(n_tiles * t, dtype=jnp.int32).reshape(n_tiles, t)
-    xq_all = jnp.pad(positions, ((0, pad), (0, 0))).reshape(n_tiles, t, 3)
-    q_mask = jnp.pad(mask, (0, pad)).reshape(n_tiles, t)
-    r2 = jnp.asarray(r, positions.dtype) ** 2
-    # Candidate columns in a fixed pseudo-random order: lax.top_k on the CPU is up to 1.5x
-    # slower on spatially coherent node orders (solver meshes) than on shuffled ones.
-    perm = _column_order(n)
-    cand = jnp.asarray(perm)
-    cols = positions[perm].T  # [3, N]: per-coordinate differences vectorise along the rows
-    col_mask = mask[perm]
-
-    def tile(args):
-        iq, xq, mq = args
-        d2 = sum((xq[:, c : c + 1] - cols[c][None, :]) ** 2 for c in range(3))
-        ok = col_mask[None, :] & mq[:, None] & (d2 < r2)
-        if not loop:
-            ok = ok & (iq[:, None] != cand[None, :])
-        d2 = jnp.where(ok, d2, jnp.inf)
-        return _select_k(d2, cand, k, n), jnp.sum(ok, axis=-1, dtype=jnp.int32)
-
-    ids, counts = jax.lax.map(tile, (rows, xq_all, q_mask))
-    return NeighborList(
-        indices=ids.reshape(-1, k)[:n],
-        counts=counts.reshape(-1)[:n],
-        overflow=jnp.zeros((), bool),
-    )
+    ids, counts, _ = dense_search(positions, r, k, mask, loop, tile_rows)
+    return NeighborList(indices=ids, counts=counts, overflow=jnp.zeros((), bool))
 
 
 def radius_graph(
