@@ -17,14 +17,14 @@ $(STAMP): pyproject.toml
 venv: $(STAMP)
 
 demo: $(STAMP)
-	$(BIN)/python -m thrombojax.demo --out demo_output
+	$(BIN)/python experiments/demo.py --out demo_output
 
 test: $(STAMP)
-	$(BIN)/ruff check thrombojax tests benchmarks
+	$(BIN)/ruff check thrombojax tests benchmarks experiments
 	$(BIN)/python -m pytest -q -n 2 --dist loadfile
 
 lint: $(STAMP)
-	$(BIN)/ruff check thrombojax tests benchmarks
+	$(BIN)/ruff check thrombojax tests benchmarks experiments
 
 clean:
 	rm -rf $(VENV) .jax_cache demo_output .pytest_cache

@@ -18,7 +18,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import platform
 import statistics
 import subprocess
 import time
@@ -27,6 +26,7 @@ from pathlib import Path
 import jax
 import numpy as np
 
+from thrombojax.eval.tables import environment
 from thrombojax.graph import build_balltree, estimate_capacity, radius_graph
 from thrombojax.graph.dense import dense_search
 
@@ -218,23 +218,6 @@ def _uptime() -> str:
         ).stdout.strip()
     except OSError:
         return ""
-
-
-def environment() -> dict:
-    """Device, versions, date and load average (the CPU may be shared)."""
-    import flax
-
-    return dict(
-        date=time.strftime("%Y-%m-%d %H:%M:%S %Z"),
-        device=str(jax.devices()[0]),
-        platform=platform.platform(),
-        cpu_count=os.cpu_count(),
-        load_avg=os.getloadavg(),
-        uptime=_uptime(),
-        jax=jax.__version__,
-        flax=flax.__version__,
-        numpy=np.__version__,
-    )
 
 
 def main() -> None:

@@ -24,24 +24,21 @@ Usage::
 from __future__ import annotations
 
 import argparse
-import datetime
 import json
 import os
-import platform
 import statistics
 import sys
 import time
 
-import flax
 import jax
 import jax.numpy as jnp
 import numpy as np
-import optax
 
+from thrombojax.eval.tables import environment
 from thrombojax.models import MODEL_NAMES, count_params, create_model, get_config
 from thrombojax.types import ModelInput, NodeType
 
-__all__ = ["synthetic_inputs", "bench_model", "environment", "main"]
+__all__ = ["synthetic_inputs", "bench_model", "main"]
 
 
 def synthetic_inputs(n_nodes: int, *, clot_fraction: float = 0.3, seed: int = 0) -> ModelInput:
@@ -110,24 +107,6 @@ def bench_model(name: str, n_nodes: int, *, tiny: bool = False, repeats: int = 1
         "model_ms": round(_median_ms(model_only, params, inputs, graph, repeats=repeats), 3),
         "max_degree": None if counts is None else int(jnp.max(counts)),
         "overflow": bool(graph.overflow),
-    }
-
-
-def environment() -> dict:
-    """Device, versions, date and load: printed beside every set of figures."""
-    dev = jax.devices()[0]
-    return {
-        "date_utc": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
-        "device": f"{dev.platform}:{getattr(dev, 'device_kind', '')}",
-        "n_devices": jax.device_count(),
-        "cpu_count": os.cpu_count(),
-        "load_avg_1_5_15": [round(x, 2) for x in os.getloadavg()],
-        "python": platform.python_version(),
-        "jax": jax.__version__,
-        "jaxlib": jax.lib.__version__ if hasattr(jax.lib, "__version__") else None,
-        "flax": flax.__version__,
-        "optax": optax.__version__,
-        "numpy": np.__version__,
     }
 
 

@@ -12,7 +12,7 @@ import pytest
 from thrombojax.graph.balltree import build_balltree_numpy
 from thrombojax.models.erwin import BallMSA, ErwinGraph, ErwinSurrogate
 from thrombojax.models.registry import count_params, create_model, get_config
-from thrombojax.rollout import make_input
+from thrombojax.simulator.step import make_input
 
 N = 50
 
@@ -46,7 +46,6 @@ def test_output_shape_finite_and_widths(setup):
     out = apply(params, inputs, graph)
     assert out.shape == (N, 3)
     assert bool(jnp.all(jnp.isfinite(out)))
-    assert not bool(graph.overflow)
     assert graph.tree.perm.shape == (64,) and len(graph.tree.rot_perm) == 2
     # widths double per level (hidden 8 -> 16 after one stride-2 pooling)
     net = params["params"]["net"]
@@ -102,7 +101,7 @@ def test_numpy_tree_gives_same_output(setup):
         ball_sizes=c.ball_sizes, rotate=c.rotate,
     )
     tree_np = jax.tree_util.tree_map(jnp.asarray, tree_np)
-    graph_np = ErwinGraph(tree=tree_np, neighbors=graph.neighbors, overflow=graph.overflow)
+    graph_np = ErwinGraph(tree=tree_np, neighbors=graph.neighbors)
     np.testing.assert_array_equal(tree_np.perm, graph.tree.perm)
     np.testing.assert_allclose(
         apply(params, inputs, graph_np), apply(params, inputs, graph), atol=1e-6, rtol=1e-5

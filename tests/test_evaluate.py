@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from thrombojax.bench import synthetic_cloud
 from thrombojax.cli import main
+from thrombojax.eval.bench import synthetic_cloud
 from thrombojax.types import NodeType
 
 

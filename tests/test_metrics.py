@@ -6,15 +6,14 @@ import numpy as np
 import pytest
 
 from thrombojax.errors import DatasetError
-from thrombojax.metrics import (
+from thrombojax.eval.metrics import (
     centroid_error,
-    clot_mask_of,
     fit_vessel_wall,
     fraction_outside,
     horizon_mse,
     mse_per_step,
 )
-from thrombojax.types import NodeType
+from thrombojax.types import NodeType, clot_mask
 
 
 def _bent_tube(radius=1.0, bend=4.0, n_ring=16, n_len=30):
@@ -37,7 +36,7 @@ def test_mse_horizons_and_centroid():
     pred[:, 0] += np.arange(1, 13)[:, None]  # node 0 (clot) drifts by k
     pred[:, 3] += 100.0  # a vessel node: must not count
     node_type = np.array([NodeType.CLOT, NodeType.CLOT, NodeType.VESSEL, NodeType.VESSEL])
-    clot = clot_mask_of(node_type)
+    clot = clot_mask(node_type)
     per = mse_per_step(pred, true, clot)
     np.testing.assert_allclose(per, np.arange(1, 13) ** 2 * 3 / 6)
     h = horizon_mse(per, (1, 10, 50))
@@ -68,7 +67,7 @@ def test_containment_in_bent_tube():
     sel[:] = False
     sel[n_wall + 4:] = True
     assert fraction_outside(vw, traj, sel)[0] == 1.0
-    sel = clot_mask_of(node_type)
+    sel = clot_mask(node_type)
     assert fraction_outside(vw, traj, sel)[0] == pytest.approx(5 / 9)
 
 

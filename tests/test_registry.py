@@ -8,6 +8,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
+from thrombojax import study
 from thrombojax.errors import ConfigError
 from thrombojax.models import (
     MODEL_NAMES,
@@ -22,7 +23,7 @@ from thrombojax.models import (
     get_config,
     identity_stats,
 )
-from thrombojax.rollout import predict_next
+from thrombojax.simulator.step import make_step
 from thrombojax.types import ModelInput, NodeType
 
 
@@ -56,10 +57,10 @@ def test_wrong_config_type_rejected():
 def test_study_defaults():
     mgn = get_config("mgn")
     assert (mgn.hidden, mgn.processor_size, mgn.radius, mgn.max_neighbors) == (64, 15, 0.56, 32)
-    assert (mgn.batch_size, mgn.learning_rate) == (8, 1e-3)
+    assert study.training_defaults("mgn") == {"batch_size": 8, "lr": 1e-3}
     e = ErwinConfig()
-    assert (e.hidden, e.mlp_ratio, e.rotate, e.radius, e.batch_size, e.learning_rate) == (
-        32, 4, 45.0, 0.766, 8, 1e-4)
+    assert (e.hidden, e.mlp_ratio, e.rotate, e.radius) == (32, 4, 45.0, 0.766)
+    assert study.training_defaults("erwin") == {"batch_size": 8, "lr": 1e-4}
     assert e.enc_heads == (4, 4, 4, 4) and e.enc_depths == (8, 10, 12, 14)
     assert e.dec_heads == (4, 4, 4) and e.dec_depths == (4, 4, 4)
     assert e.strides == (2, 2, 2) and e.ball_sizes == (128, 128, 128, 128)
@@ -94,7 +95,7 @@ def test_erwin_config_sequences_become_tuples():
 
 @pytest.mark.parametrize("name", MODEL_NAMES)
 def test_every_registered_model_follows_the_contract(name):
-    """build_graph / init / apply trace as one function (jittable): [N, 3] output, overflow flag.
+    """build_graph / init / apply trace as one function (jittable): [N, 3] float32 output.
 
     Traced abstractly (``jax.eval_shape``, no compilation) to stay fast; the numerical
     acceptance tests live in each model's test file.
@@ -107,11 +108,10 @@ def test_every_registered_model_follows_the_contract(name):
         graph = model.build_graph(inputs)
         params = model.init(rng, inputs, graph)
         out = model.apply(params, inputs, graph)
-        return out, graph.overflow, params
+        return out, params
 
-    out, overflow, params = jax.eval_shape(run, jax.random.key(0))
+    out, params = jax.eval_shape(run, jax.random.key(0))
     assert out.shape == (inputs.n_nodes, 3) and out.dtype == jnp.float32
-    assert overflow.shape == () and overflow.dtype == bool
     assert (count_params(params) == 0) == (name == "constant_velocity")
 
 
@@ -122,10 +122,8 @@ def test_constant_velocity_integrates_to_x_plus_v():
     x_cur = inputs.positions
     x_prev = x_cur - inputs.velocity
     assert model.init(jax.random.key(0), inputs, model.build_graph(inputs)) == {}
-    assert not bool(model.build_graph(inputs).overflow)
-    x_next, out = predict_next(
-        model, {}, identity_stats(), x_prev, x_cur, inputs.node_type, inputs.mask
-    )
+    res = make_step(model)({}, identity_stats(), x_prev, x_cur, inputs.node_type, inputs.mask)
+    x_next, out = res.positions, res.output
     np.testing.assert_array_equal(out, 0.0)
     clot = np.asarray(inputs.mask & (inputs.node_type == NodeType.CLOT))
     np.testing.assert_allclose(x_next[clot], (x_cur + (x_cur - x_prev))[clot], atol=1e-7)

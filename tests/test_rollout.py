@@ -1,4 +1,4 @@
-"""Rollout under lax.scan: compiles once, first step == predict_next, rigid vessel, determinism."""
+"""Rollout under lax.scan: compiles once, steps are the learned step, rigid vessel, determinism."""
 
 from __future__ import annotations
 
@@ -9,14 +9,11 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from thrombojax.errors import CapacityOverflowError, ConfigError
-from thrombojax.rollout import (
-    constant_velocity_rollout,
-    predict_next,
-    rollout,
-    rollout_jit,
-    select_subset,
-)
+from thrombojax.data.augment import subsample_indices
+from thrombojax.errors import ConfigError
+from thrombojax.models.registry import create_model, get_config, identity_stats
+from thrombojax.simulator.rollout import constant_velocity_rollout, rollout, rollout_jit, unroll
+from thrombojax.simulator.step import make_step
 from thrombojax.types import NodeType, TargetStats
 
 TRACES: list[int] = []  # the fake model appends here each time its graph is traced
@@ -28,13 +25,12 @@ class FakeSurrogate:
 
     name: str = "fake"
     radius: float = 0.5
-    force_overflow: bool = False
 
     def build_graph(self, inputs):
         TRACES.append(1)
         d = jnp.linalg.norm(inputs.positions[:, None] - inputs.positions[None], axis=-1)
         adj = (d < self.radius) & inputs.mask[:, None] & inputs.mask[None]
-        return {"adj": adj, "overflow": jnp.asarray(self.force_overflow)}
+        return {"adj": adj}
 
     def init(self, rng, inputs, graph):
         k1, k2 = jax.random.split(rng)
@@ -58,7 +54,7 @@ def _state(n=40, seed=0):
     return x_prev, x_cur, node_type, mask, stats
 
 
-def test_rollout_compiles_once_and_first_step_matches_predict_next():
+def test_rollout_compiles_once_and_each_step_is_the_learned_step():
     model = FakeSurrogate()
     x_prev, x_cur, node_type, mask, stats = _state()
     params = model.init(jax.random.key(0), None, None)
@@ -72,12 +68,11 @@ def test_rollout_compiles_once_and_first_step_matches_predict_next():
     assert len(TRACES) == 1 and rollout_jit._cache_size() == size0 + 1
     assert traj.shape == (6, 40, 3) and not np.allclose(traj, traj2)
 
-    first, _ = jax.jit(predict_next, static_argnums=0)(
-        model, params, stats, x_prev, x_cur, node_type, mask
-    )
+    step = make_step(model)
+    first = jax.jit(step)(params, stats, x_prev, x_cur, node_type, mask).positions
     np.testing.assert_allclose(np.asarray(traj[0]), np.asarray(first), rtol=0, atol=1e-6)
-    # second step from (s_t, predicted s_{t+1}) matches too
-    second, _ = predict_next(model, params, stats, x_cur, first, node_type, mask)
+    # second step from (s_t, predicted s_{t+1}) matches too: predictions are fed back
+    second = step(params, stats, x_cur, first, node_type, mask).positions
     np.testing.assert_allclose(np.asarray(traj[1]), np.asarray(second), rtol=0, atol=1e-5)
 
 
@@ -99,42 +94,39 @@ def test_same_seed_same_subset_rollout():
     params = model.init(jax.random.key(0), None, None)
 
     def run(seed):
-        idx = select_subset(node_type, 24, seed=seed)
+        idx = subsample_indices(seed, node_type, 24)
         return np.asarray(rollout(model, params, stats, x_prev[idx], x_cur[idx],
                                   node_type[idx], mask[idx], 4))
 
     assert np.array_equal(run(7), run(7))
-    assert not np.array_equal(select_subset(node_type, 24, seed=7),
-                              select_subset(node_type, 24, seed=8))
+    assert not np.array_equal(subsample_indices(7, node_type, 24),
+                              subsample_indices(8, node_type, 24))
 
 
-def test_select_subset_keeps_clot_fraction():
+def test_fixed_subset_keeps_clot_fraction():
     node_type = np.array([NodeType.CLOT] * 250 + [NodeType.VESSEL] * 750)
-    idx = select_subset(node_type, 200, seed=0)
+    idx = subsample_indices(0, node_type, 200)
     assert idx.shape == (200,) and np.unique(idx).size == 200
     assert (node_type[idx] == NodeType.CLOT).sum() == 50
-    assert np.array_equal(select_subset(node_type, 5000), np.arange(1000))
+    assert np.array_equal(subsample_indices(0, node_type, 5000), np.arange(1000))
+    np.testing.assert_array_equal(idx, subsample_indices(np.random.default_rng(0), node_type, 200))
     with pytest.raises(ConfigError):
-        select_subset(node_type, 0)
+        subsample_indices(0, node_type, 0)
 
 
-def test_constant_velocity_baseline_and_overflow_flag():
+def test_constant_velocity_baseline():
     x_prev, x_cur, node_type, mask, stats = _state()
     cv = constant_velocity_rollout(x_prev, x_cur, node_type, mask, 3)
     clot = (node_type == NodeType.CLOT) & mask
     np.testing.assert_allclose(cv[2, clot], x_cur[clot] + 3 * (x_cur - x_prev)[clot], atol=1e-6)
     assert np.array_equal(cv[:, ~clot], np.broadcast_to(x_cur[~clot], cv[:, ~clot].shape))
-    model = FakeSurrogate(force_overflow=True)
+    model = FakeSurrogate()
     params = model.init(jax.random.key(0), None, None)
-    with pytest.raises(CapacityOverflowError, match="step 1"):
-        rollout(model, params, stats, x_prev, x_cur, node_type, mask, 2)
     with pytest.raises(ConfigError):
         rollout(model, params, stats, x_prev, x_cur, node_type, mask, 0)
 
 
 def test_registered_models_first_step_and_baseline():
-    from thrombojax.models.registry import create_model, get_config, identity_stats
-
     x_prev, x_cur, node_type, mask, stats = _state(n=48)
     cv = create_model("constant_velocity")
     traj = rollout(cv, {}, identity_stats(), x_prev, x_cur, node_type, mask, 5)
@@ -142,13 +134,32 @@ def test_registered_models_first_step_and_baseline():
                                constant_velocity_rollout(x_prev, x_cur, node_type, mask, 5),
                                atol=1e-6)
     mgn = create_model("mgn", get_config("mgn", tiny=True))
-    from thrombojax.rollout import make_input
-
-    inputs = make_input(x_prev, x_cur, node_type, mask)
-    params = mgn.init(jax.random.key(0), inputs, mgn.build_graph(inputs))
+    step = make_step(mgn)
+    params = step.init(jax.random.key(0), x_prev, x_cur, node_type, mask)
     traj = rollout(mgn, params, stats, x_prev, x_cur, node_type, mask, 3)
-    first, _ = predict_next(mgn, params, stats, x_prev, x_cur, node_type, mask)
+    first = step(params, stats, x_prev, x_cur, node_type, mask).positions
     np.testing.assert_allclose(np.asarray(traj[0]), np.asarray(first), rtol=0, atol=1e-5)
     fixed = (node_type == NodeType.VESSEL) | ~mask
     assert np.array_equal(np.asarray(traj)[:, fixed],
                           np.broadcast_to(x_cur[fixed], (3, int(fixed.sum()), 3)))
+
+
+def test_unroll_is_differentiable_through_every_step():
+    """Gradients of the last frame reach the parameters through all steps (k-step loss)."""
+    model = FakeSurrogate()
+    x_prev, x_cur, node_type, mask, stats = _state()
+    params = model.init(jax.random.key(0), None, None)
+    step = make_step(model)
+
+    def last(p, k):
+        return unroll(step, p, stats, x_prev, x_cur, node_type, mask, k)[0][-1].sum()
+
+    g1 = jax.grad(last)(params, 1)
+    g3 = jax.grad(last)(params, 3)
+    assert all(np.isfinite(np.asarray(x)).all() for x in jax.tree.leaves(g3))
+    assert not np.allclose(np.asarray(g1["w"]), np.asarray(g3["w"]))
+    # the scan's first output is the single step
+    pos, out = unroll(step, params, stats, x_prev, x_cur, node_type, mask, 2)
+    single = step(params, stats, x_prev, x_cur, node_type, mask)
+    np.testing.assert_allclose(np.asarray(pos[0]), np.asarray(single.positions), atol=1e-6)
+    np.testing.assert_allclose(np.asarray(out[0]), np.asarray(single.output), atol=1e-6)

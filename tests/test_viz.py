@@ -5,8 +5,13 @@ from __future__ import annotations
 import numpy as np
 from PIL import Image
 
+from thrombojax.eval.plots import (
+    animate_rollout,
+    equal_limits,
+    plot_error_curves,
+    plot_rollout_metrics,
+)
 from thrombojax.types import NodeType
-from thrombojax.viz import animate_rollout, equal_limits, plot_error_curves, plot_rollout_metrics
 
 
 def test_equal_limits_is_a_cube_containing_all_points():

@@ -54,10 +54,20 @@ _EXPORTS: dict[str, str] = {
     "train": "thrombojax.train.loop",
     "load_trained": "thrombojax.train.state",
     "TrainedModel": "thrombojax.train.state",
-    # rollout and evaluation
-    "predict_next": "thrombojax.rollout",
-    "rollout": "thrombojax.rollout",
-    "select_subset": "thrombojax.rollout",
+    "subsample_indices": "thrombojax.data.augment",
+    # the learned simulator
+    "LearnedStep": "thrombojax.simulator.step",
+    "make_step": "thrombojax.simulator.step",
+    "rollout": "thrombojax.simulator.rollout",
+    "constant_velocity_rollout": "thrombojax.simulator.rollout",
+    # training
+    "TrainConfig": "thrombojax.train.config",
+    "RunConfig": "thrombojax.train.config",
+    # evaluation
+    "evaluate_run": "thrombojax.eval.single_step",
+    "rollout_simulation": "thrombojax.eval.rollouts",
+    "rollout_run": "thrombojax.eval.report",
+    "bench": "thrombojax.eval.bench",
 }
 
 __all__ = ["__version__", *_EXPORTS]

@@ -136,7 +136,7 @@ def _run_import_abaqus(args) -> int:
 _REGISTRARS += [_add_info, _add_import]
 
 
-# ---- [B] generate ----------------------------------------------------------------------------
+# ---- generate ----------------------------------------------------------------------------
 
 
 def _add_generate(sub) -> None:
@@ -173,7 +173,7 @@ def _run_generate(args) -> int:
 _REGISTRARS += [_add_generate]
 
 
-# ---- [E] train -------------------------------------------------------------------------------
+# ---- train -------------------------------------------------------------------------------
 
 
 def _add_train(sub) -> None:
@@ -188,17 +188,21 @@ def _add_train(sub) -> None:
             "values, else the study's (each model's batch size and learning rate)."
         ),
     )
-    p.add_argument("--dataset", required=True, metavar="FILE", help="dataset .h5 file")
-    p.add_argument("--model", required=True, help="mgn | transolver | erwin")
+    p.add_argument("--dataset", metavar="FILE", help="dataset .h5 file (default: the dataset of "
+                   "a run's config.json given as --config)")
+    p.add_argument("--model", help="mgn | transolver | erwin (default: the model of a run's "
+                   "config.json given as --config)")
     p.add_argument("--out", required=True, metavar="DIR", help="run directory to write")
-    p.add_argument("--config", metavar="FILE", help="JSON training config (TrainConfig keys)")
+    p.add_argument("--config", metavar="FILE", help="JSON training config (TrainConfig keys), "
+                   "or a run's config.json to repeat that run")
     p.add_argument("--resume", action="store_true", help="continue the run in DIR exactly")
     p.add_argument("--epochs", type=int, help="epochs (study: 300)")
     p.add_argument("--batch-size", type=int, help="samples per step (study: 8 mgn/erwin, 16 "
                    "transolver); a multiple of the number of devices")
     p.add_argument("--lr", type=float, help="peak learning rate (study: 1e-3 mgn, 1e-4 others)")
     p.add_argument("--warmup-epochs", type=float, help="linear warm-up epochs (study: 10)")
-    p.add_argument("--radius", type=float, help="graph radius in scaled coordinates")
+    p.add_argument("--radius", type=float, help="graph radius in scaled coordinates (a model "
+                   "config field)")
     p.add_argument("--max-rotation", help="largest random rotation, radians; also 'pi', 'pi/2', "
                    "'0.5pi' or '90deg' (study's best: pi; 0 disables)")
     p.add_argument("--nodes-per-sample", type=int, help="subsample N nodes per sample, clot "
@@ -207,7 +211,10 @@ def _add_train(sub) -> None:
                    "(study's best on BendVessel: 2, i.e. real:generated 1:2; default 0)")
     p.add_argument("--noise-std", type=float, help="training noise on s_t (default 0: off)")
     p.add_argument("--seed", type=int, help="seed of initialisation, data order, augmentations")
-    p.add_argument("--skip-frames", type=int, help="first frames never used as middle frame")
+    p.add_argument("--skip-frames", type=int, help="first frames never used as frame t of a "
+                   "window (default 0: every window)")
+    p.add_argument("--rollout-steps", type=int, help="k of the k-step unrolled loss (default 1: "
+                   "single-step loss)")
     p.add_argument("--n-val", type=int, help="validation simulations (default 2)")
     p.add_argument("--n-test", type=int, help="test simulations, never trained on (default 1)")
     p.add_argument("--tiny", action="store_true", default=None, help="tiny model config")
@@ -218,13 +225,18 @@ def _add_train(sub) -> None:
 
 
 def _run_train(args) -> int:
+    from thrombojax.train.config import RunConfig, TrainConfig, load_config_file
     from thrombojax.train.loop import train
 
-    names = ("epochs", "batch_size", "lr", "warmup_epochs", "radius", "max_rotation",
+    names = ("epochs", "batch_size", "lr", "warmup_epochs", "max_rotation",
              "nodes_per_sample", "bary_ratio", "noise_std", "seed", "skip_frames", "n_val",
-             "n_test", "tiny")
+             "n_test", "tiny", "rollout_steps")
     overrides = {k: getattr(args, k) for k in names if getattr(args, k) is not None}
-    trained = train(args.dataset, args.model, args.out, config=args.config, resume=args.resume,
+    config = load_config_file(args.config) if args.config else None
+    if args.radius is not None:
+        base = config.train if isinstance(config, RunConfig) else (config or TrainConfig())
+        overrides["model_config"] = {**base.model_config, "radius": args.radius}
+    trained = train(args.dataset, args.model, args.out, config=config, resume=args.resume,
                     progress=not args.quiet, distributed=args.distributed, **overrides)
     print(f"trained {trained.model.name}: best checkpoint in {args.out}/checkpoints/best")
     return 0
@@ -233,7 +245,7 @@ def _run_train(args) -> int:
 _REGISTRARS += [_add_train]
 
 
-# ---- [F] evaluate, rollout, export, bench ---------------------------------------------------
+# ---- evaluate, rollout, export, bench ---------------------------------------------------
 
 
 def _add_evaluate(sub) -> None:
@@ -259,7 +271,7 @@ def _add_evaluate(sub) -> None:
 
 
 def _run_evaluate(args) -> int:
-    from thrombojax.evaluate import evaluate_run
+    from thrombojax.eval.single_step import evaluate_run
 
     res = evaluate_run(args.run, args.dataset, out_dir=args.out, split=args.split,
                        which=args.checkpoint, skip=args.skip, n_nodes=args.nodes,
@@ -275,7 +287,8 @@ def _add_rollout(sub) -> None:
         help="roll a trained run out: trajectory HDF5, ParaView series, GIF, error plots",
         description=(
             "Autoregressive rollout (one compiled jax.lax.scan) of a trained run on dataset "
-            "simulations, starting after the study's skipped frames (5 BendVessel, 40 ClotEntry). "
+            "simulations, starting after the dataset's skipped frames (its skip_frames attribute: "
+            "5 BendVessel, 40 ClotEntry, as in the study). "
             "Writes per simulation: <sim>_rollout.h5 (dataset schema), <sim>_prediction.xdmf and "
             "<sim>_truth.xdmf (node types and error as point data), <sim>_rollout.gif (prediction "
             "beside ground truth), <sim>_error.png and <sim>_metrics.png (with the "
@@ -289,7 +302,8 @@ def _add_rollout(sub) -> None:
                    help="simulation to roll out (repeatable; default: the run's test split)")
     p.add_argument("--split", default="test", choices=("train", "val", "test", "all"))
     p.add_argument("--checkpoint", default="best", choices=("best", "last"))
-    p.add_argument("--skip", type=int, help="skipped frames (default 5, or 40 for ClotEntry)")
+    p.add_argument("--skip", type=int, help="skipped frames (default: the dataset's "
+                   "skip_frames attribute)")
     p.add_argument("--steps", type=int, help="rollout steps (default: to the last frame)")
     p.add_argument("--nodes", type=int, help="fixed seeded node subset (the study: 2048 on "
                    "ClotEntry; default: the run's nodes_per_sample, else all nodes)")
@@ -300,7 +314,7 @@ def _add_rollout(sub) -> None:
 
 
 def _run_rollout(args) -> int:
-    from thrombojax.rollout_report import rollout_run
+    from thrombojax.eval.report import rollout_run
 
     res = rollout_run(args.run, args.dataset, args.out, simulations=args.sim, split=args.split,
                       which=args.checkpoint, skip=args.skip, n_steps=args.steps,
@@ -370,8 +384,8 @@ def _add_bench(sub) -> None:
 
 
 def _run_bench(args) -> int:
-    from thrombojax.bench import bench
     from thrombojax.errors import ConfigError
+    from thrombojax.eval.bench import bench
 
     runs = {}
     for item in args.run:

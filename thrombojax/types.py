@@ -1,13 +1,11 @@
-"""Shared types: node types, shape-documented array aliases and small frozen pytrees.
+"""Shared types: node types, the clot-node mask and the small frozen pytrees every layer uses.
 
-Array aliases document shapes in their names and docstrings; they are plain
-``jax.Array`` / ``np.ndarray`` at run time (no runtime shape checking).
+The lowest layer of the package (it imports nothing from thrombojax); see ``docs/architecture.md``.
 """
 
 from __future__ import annotations
 
 from enum import IntEnum
-from typing import TypeAlias
 
 import jax
 import jax.numpy as jnp
@@ -17,10 +15,7 @@ from flax import struct
 __all__ = [
     "NodeType",
     "NUM_NODE_TYPES",
-    "Positions",
-    "Trajectory",
-    "NodeMask",
-    "NodeTypes",
+    "clot_mask",
     "ModelInput",
     "TargetStats",
     "node_type_one_hot",
@@ -36,17 +31,20 @@ class NodeType(IntEnum):
 
 NUM_NODE_TYPES: int = len(NodeType)
 
-Positions: TypeAlias = jax.Array
-"""``[n_nodes, 3]`` float positions of one frame."""
-Trajectory: TypeAlias = jax.Array | np.ndarray
-"""``[n_frames, n_nodes, 3]`` float positions of one simulation."""
-NodeMask: TypeAlias = jax.Array
-"""``[n_nodes]`` bool, True for real (not padded) nodes."""
-NodeTypes: TypeAlias = jax.Array
-"""``[n_nodes]`` int, values of :class:`NodeType`."""
+def clot_mask(node_type, mask=None):
+    """Real clot nodes, the only nodes that move, enter a loss or a metric.
+
+    Args:
+        node_type: ``[..., n_nodes]`` :class:`NodeType` values (numpy or jax).
+        mask: optional ``[..., n_nodes]`` bool, True on real (not padded) nodes.
+    Returns:
+        ``[..., n_nodes]`` bool of the same array kind as the inputs.
+    """
+    clot = node_type == NodeType.CLOT
+    return clot if mask is None else clot & mask
 
 
-def node_type_one_hot(node_type: NodeTypes) -> jax.Array:
+def node_type_one_hot(node_type: jax.Array) -> jax.Array:
     """One-hot encode node types: ``[n_nodes] -> [n_nodes, NUM_NODE_TYPES]`` float32."""
     return jax.nn.one_hot(node_type, NUM_NODE_TYPES, dtype=jnp.float32)
 
@@ -74,7 +72,7 @@ class ModelInput:
     @property
     def clot_mask(self) -> jax.Array:
         """``[n_nodes]`` bool: real clot nodes (the nodes a loss or metric may see)."""
-        return self.mask & (self.node_type == NodeType.CLOT)
+        return clot_mask(self.node_type, self.mask)
 
 
 @struct.dataclass

@@ -79,20 +79,28 @@ def rotate_window(frames: jax.Array, rotation: jax.Array) -> jax.Array:
     return frames @ rotation.T
 
 
-def subsample_indices(rng: np.random.Generator, node_type: np.ndarray, n: int) -> np.ndarray:
+def subsample_indices(
+    rng: np.random.Generator | int, node_type: np.ndarray, n: int
+) -> np.ndarray:
     """Choose ``n`` of the ``N`` nodes, keeping the clot fraction (host-side, numpy).
+
+    The one node-subset rule of the package: training samples (``nodes_per_sample``), evaluation
+    and rollouts on a fixed subset (the study's 2,048 nodes of ClotEntry) all call it.
 
     The number of clot nodes is ``round(n * N_clot / N)``, at least one when the sample has clot
     nodes, and never more than there are of either type. The same indices must be applied to
     every frame of the window.
 
     Args:
-        rng: numpy generator (seeded by the caller, e.g. from (seed, epoch, position)).
+        rng: numpy generator (seeded by the caller, e.g. from (seed, epoch, position)), or an
+            int seed (a fixed subset, e.g. for a rollout).
         node_type: ``[N]`` NodeType values.
         n: number of nodes wanted; ``n >= N`` returns all nodes.
     Returns:
         ``[min(n, N)]`` int64 sorted node indices.
     """
+    if not isinstance(rng, np.random.Generator):
+        rng = np.random.default_rng(int(rng))
     node_type = np.asarray(node_type)
     total = node_type.shape[0]
     if n <= 0:

@@ -3,7 +3,8 @@
 The host side of the input pipeline, in numpy:
 
 * :class:`WindowStore` holds the scaled trajectories of some simulations in memory and the list
-  of their windows ``(simulation, t)``.
+  of their windows ``(simulation, t)`` of ``length`` frames (3 for single steps, ``k + 2`` for a
+  k-step loss); a batch slices its windows out of the trajectories, nothing is copied per window.
 * :func:`padding_budget`: every sample is padded to one node count per dataset (the nodes per
   sample, or the largest simulation), rounded up to a multiple of 64 as in flax's ogbg example,
   so ``jit`` compiles the step once; :class:`Batch` carries the masks.
@@ -17,14 +18,18 @@ The host side of the input pipeline, in numpy:
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Sequence
 
 import jax.numpy as jnp
 import numpy as np
 from flax import struct
 
 from thrombojax.data.augment import subsample_indices
+from thrombojax.data.scaling import Scaling
+from thrombojax.data.windows import window_times
 from thrombojax.errors import ConfigError, DatasetError
-from thrombojax.types import NodeType, TargetStats
+from thrombojax.io.hdf5 import Dataset
+from thrombojax.types import NodeType, TargetStats, clot_mask
 
 __all__ = [
     "Batch",
@@ -42,7 +47,7 @@ class Batch:
     """A padded batch of windows (scaled coordinates).
 
     Attributes:
-        frames: ``[B, 3, n_budget, 3]`` float32 (s_{t-1}, s_t, s_{t+1}); padding is 0.
+        frames: ``[B, W, n_budget, 3]`` float32 (s_{t-1}, s_t, ..., s_{t+W-2}); padding is 0.
         node_type: ``[B, n_budget]`` int32 NodeType (padding: VESSEL).
         mask: ``[B, n_budget]`` bool, True on real nodes (all False for an empty padding sample).
         generated: ``[B]`` bool, True where the sample is to be replaced by BaryCentricSampling.
@@ -66,13 +71,16 @@ class WindowStore:
         names: simulation names.
         positions: per simulation ``[T, N_s, 3]`` float32 in scaled coordinates.
         node_type: per simulation ``[N_s]`` int8.
-        windows: ``[W, 2]`` int64 rows ``(index into names, t)``, t the middle frame.
+        windows: ``[n_windows, 2]`` int64 rows ``(index into names, t)``, t the window's second
+            frame (the current frame of its first step).
+        length: frames per window (``>= 3``).
     """
 
     names: tuple[str, ...]
     positions: tuple[np.ndarray, ...]
     node_type: tuple[np.ndarray, ...]
     windows: np.ndarray
+    length: int = 3
 
     def __len__(self) -> int:
         return int(self.windows.shape[0])
@@ -82,35 +90,34 @@ class WindowStore:
         return max(int(p.shape[1]) for p in self.positions)
 
 
-def load_store(dataset, names, scaling, *, skip: int = 0) -> WindowStore:
+def load_store(
+    dataset: Dataset, names: Sequence[str], scaling: Scaling, *, skip: int = 0, length: int = 3
+) -> WindowStore:
     """Read simulations into memory, scaled, and list their windows.
 
     Args:
         dataset: an open :class:`thrombojax.io.hdf5.Dataset`.
         names: simulation names to load.
-        scaling: the dataset's :class:`thrombojax.data.scaling.Scaling` (``(x - center) / scale``).
-        skip: first frames not used as the middle frame t (``window_times(..., skip=skip)``).
+        scaling: the dataset's :class:`thrombojax.data.scaling.Scaling`.
+        skip: first frames not used as the frame t (``window_times(..., skip=skip)``).
+        length: frames per window (3: single step; ``k + 2`` for a k-step loss).
     Returns:
         The :class:`WindowStore`.
     """
-    from thrombojax.data.windows import window_times
-
-    center = np.asarray(scaling.center, np.float64)
-    scale = float(np.asarray(scaling.scale))
     positions, types, rows = [], [], []
     for i, name in enumerate(names):
         pos = np.asarray(dataset.positions(name), np.float64)
-        positions.append(((pos - center) / scale).astype(np.float32))
+        positions.append(np.asarray(scaling.apply(pos), np.float32))
         types.append(np.asarray(dataset.node_type(name), np.int8))
-        times = np.asarray(window_times(pos.shape[0], skip=skip), np.int64)
+        times = window_times(pos.shape[0], skip=skip, length=length)
         rows.extend((i, int(t)) for t in times)
     if not rows:
         raise DatasetError(
             f"{getattr(dataset, 'path', '<dataset>')}: simulations {list(names)}: field "
-            f"'positions': no windows (s_t-1, s_t, s_t+1) with skip={skip}"
+            f"'positions': no windows of {length} frames with skip={skip}"
         )
     windows = np.asarray(rows, np.int64).reshape(-1, 2)
-    return WindowStore(tuple(names), tuple(positions), tuple(types), windows)
+    return WindowStore(tuple(names), tuple(positions), tuple(types), windows, int(length))
 
 
 def padding_budget(max_nodes: int, nodes_per_sample: int | None = None, multiple: int = 64) -> int:
@@ -183,7 +190,8 @@ def make_batch(
         A :class:`Batch` of numpy arrays.
     """
     size = entries.shape[0]
-    frames = np.zeros((size, 3, budget, 3), np.float32)
+    length = store.length
+    frames = np.zeros((size, length, budget, 3), np.float32)
     node_type = np.full((size, budget), int(NodeType.VESSEL), np.int32)
     mask = np.zeros((size, budget), bool)
     for b, window in enumerate(entries[:, 0]):
@@ -201,7 +209,7 @@ def make_batch(
                 f"the padding budget {budget}"
             )
         n = idx.shape[0]
-        frames[b, :, :n] = store.positions[sim][t - 1 : t + 2][:, idx]
+        frames[b, :, :n] = store.positions[sim][t - 1 : t - 1 + length][:, idx]
         node_type[b, :n] = types[idx]
         mask[b, :n] = True
     return Batch(frames=frames, node_type=node_type, mask=mask, generated=entries[:, 1] > 0)
@@ -236,7 +244,7 @@ def compute_target_stats(
         times = store.windows[store.windows[:, 0] == sim, 1]
         if times.size == 0:
             continue
-        clot = store.node_type[sim] == NodeType.CLOT
+        clot = clot_mask(store.node_type[sim])
         p = pos[:, clot].astype(np.float64)
         accel = p[times + 1] - 2.0 * p[times] + p[times - 1]
         total += accel.sum(axis=(0, 1))

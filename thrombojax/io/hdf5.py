@@ -1,8 +1,9 @@
 """The dataset file: HDF5 write (atomic, streaming), lazy read and validation.
 
-Layout (``DESIGN.md``)::
+Layout (``docs/dataset.md``)::
 
     /                       attrs: format="thrombojax.dataset", version, name, source, units,
+                                   kind (bendvessel / clotentry / unknown), skip_frames,
                                    created (ISO 8601 UTC), generator_config (JSON, "null" if none)
     /simulations/<name>/    positions  float32 [T, N, 3]   (physical units, contiguous)
                             node_type  int8    [N]         (NodeType: 0 vessel, 1 clot)
@@ -45,6 +46,7 @@ from thrombojax.io.schema import (
     to_json,
     validate_simulation,
 )
+from thrombojax.study import UNKNOWN_KIND
 from thrombojax.types import NodeType
 
 __all__ = [
@@ -76,6 +78,10 @@ class DatasetWriter:
         source: solver name or import origin (file attribute).
         units: unit of the positions (file attribute).
         generator_config: JSON-serialisable preset of the generator, when generated.
+        kind: which of the study's datasets this is like (``bendvessel``, ``clotentry``) or
+            ``unknown`` (file attribute, :func:`thrombojax.study.dataset_kind`).
+        skip_frames: leading frames rollouts skip on this dataset (file attribute,
+            :func:`thrombojax.study.skip_frames`).
         overwrite: replace an existing file at ``path`` (else FileExistsError).
         vessel_tol: relative tolerance of the vessel-rigidity check.
     """
@@ -88,16 +94,23 @@ class DatasetWriter:
         source: str,
         units: str = "vessel radius",
         generator_config: dict | None = None,
+        kind: str = UNKNOWN_KIND,
+        skip_frames: int = 0,
         overwrite: bool = True,
         vessel_tol: float = VESSEL_TOLERANCE,
     ):
         self.path = Path(path)
+        if isinstance(skip_frames, bool) or not isinstance(skip_frames, int) or skip_frames < 0:
+            raise simulation_error(self.path, None, "skip_frames",
+                                   f"must be an integer >= 0, got {skip_frames!r}")
         self._file_attrs = {
             "format": FORMAT,
             "version": VERSION,
             "name": str(name),
             "source": str(source),
             "units": str(units),
+            "kind": str(kind),
+            "skip_frames": int(skip_frames),
         }
         try:
             self._file_attrs["generator_config"] = to_json(generator_config)
@@ -181,6 +194,8 @@ def write_dataset(
     source: str,
     units: str = "vessel radius",
     generator_config: dict | None = None,
+    kind: str = UNKNOWN_KIND,
+    skip_frames: int = 0,
     overwrite: bool = True,
     progress: bool = False,
 ) -> Path:
@@ -190,7 +205,8 @@ def write_dataset(
         The path written. Arguments as for :class:`DatasetWriter`.
     """
     writer = DatasetWriter(path, name=name, source=source, units=units,
-                           generator_config=generator_config, overwrite=overwrite)
+                           generator_config=generator_config, kind=kind,
+                           skip_frames=skip_frames, overwrite=overwrite)
     with writer:
         for sim in tqdm(simulations, desc="writing", unit="sim", disable=not progress):
             writer.add(sim)

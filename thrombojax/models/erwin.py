@@ -85,12 +85,10 @@ class ErwinGraph:
         tree: the :class:`BallTree` of the positions (slots ``perm [P]``, ``slot_mask [P]``,
             ``inverse [N]``, rotated orderings ``rot_perm`` / ``rot_inverse`` per level).
         neighbors: the radius graph (``indices [N, K]``, self loops included) of the embedding.
-        overflow: bool scalar, the neighbour list's overflow flag (re-allocate on the host).
     """
 
     tree: BallTree
     neighbors: NeighborList
-    overflow: jax.Array
 
 
 def build_erwin_graph(config: ErwinConfig, inputs: ModelInput) -> ErwinGraph:
@@ -110,7 +108,7 @@ def build_erwin_graph(config: ErwinConfig, inputs: ModelInput) -> ErwinGraph:
         inputs.positions, mask=inputs.mask, strides=tuple(config.strides),
         ball_sizes=tuple(config.ball_sizes), rotate=float(config.rotate),
     )
-    return ErwinGraph(tree=tree, neighbors=nbrs, overflow=nbrs.overflow)
+    return ErwinGraph(tree=tree, neighbors=nbrs)
 
 
 def _ball_view(a: jax.Array, m: int) -> jax.Array:

@@ -9,12 +9,18 @@ batch with ``jax.vmap``) and all jittable with the surrogate as a static argumen
     out    = model.apply(params, inputs, graph, train=False, rng=None)   # [n_nodes, 3]
 
 ``out`` is the normalised acceleration ``(a - mean) / std`` (:class:`thrombojax.types.TargetStats`);
-padded nodes' outputs are finite but arbitrary and must be masked downstream. ``graph`` is a pytree
-with a scalar bool field ``overflow`` that the caller checks on the host (a fixed search buffer
-overflowed: re-allocate, never truncate silently; the per-node neighbour cap is not an overflow).
+padded nodes' outputs are finite but arbitrary and must be masked downstream. ``graph`` is any
+pytree. The shipped graphs are built with the dense radius search, which is exact and has no
+buffer that can overflow (each node keeps its ``max_neighbors`` nearest within the radius, the
+model's definition, like torch_cluster's cap); the cell-grid search, whose cells can overflow, is
+a graph-layer tool with its own flag and host-side re-allocation
+(:func:`thrombojax.graph.neighbors.radius_graph_checked`), not part of this contract.
 
-Config defaults are the study's hyper-parameters (thesis appendix, ``PAPER.md``); each config also
-carries the training ``batch_size`` and ``learning_rate`` the study used with it.
+Config defaults are the study's architecture hyper-parameters; configs hold architecture only
+(the study's batch sizes and learning rates are training settings: :mod:`thrombojax.study`).
+
+One learned step runs a surrogate (:mod:`thrombojax.simulator.step`); nothing else calls
+``build_graph`` / ``apply`` in sequence.
 
 Adding a model: append a :class:`ModelSpec` to :data:`MODEL_SPECS` naming its config class, the
 module that defines it (imported lazily, on :func:`create_model`) and the surrogate class there.
@@ -64,7 +70,6 @@ class MeshGraphNetConfig:
         mlp_layers: hidden layers per MLP (PhysicsNeMo ``num_layers_*`` default 2).
         radius: radius of the world-edge graph in scaled coordinates.
         max_neighbors: neighbour cap per node (torch_cluster's default 32).
-        batch_size, learning_rate: the study's training settings (lr printed "10E-04" = 1e-3).
     """
 
     hidden: int = 64
@@ -72,8 +77,6 @@ class MeshGraphNetConfig:
     mlp_layers: int = 2
     radius: float = 0.56
     max_neighbors: int = 32
-    batch_size: int = 8
-    learning_rate: float = 1e-3
 
     def __post_init__(self) -> None:
         _check_positive(self, "hidden", "processor_size", "mlp_layers", "radius", "max_neighbors")
@@ -100,7 +103,6 @@ class TransolverConfig:
         mlp_ratio: block MLP width factor (PhysicsNeMo default 4).
         mp_steps: message-passing steps of the MPNN embedding (Erwin's default 3).
         radius, max_neighbors: radius graph of the MPNN embedding (self loops included).
-        batch_size, learning_rate: the study's training settings.
     """
 
     hidden: int = 64
@@ -112,8 +114,6 @@ class TransolverConfig:
     mp_steps: int = 3
     radius: float = 0.576
     max_neighbors: int = 32
-    batch_size: int = 16
-    learning_rate: float = 1e-4
 
     def __post_init__(self) -> None:
         _check_positive(self, "hidden", "heads", "layers", "slices", "mlp_ratio", "radius",
@@ -150,7 +150,6 @@ class ErwinConfig:
             False keeps ``hidden`` at every level (the thesis prints one hidden size).
         mp_steps: message-passing steps of the MPNN embedding.
         radius, max_neighbors: radius graph of the MPNN embedding (self loops included).
-        batch_size, learning_rate: the study's training settings.
     """
 
     hidden: int = 32
@@ -166,8 +165,6 @@ class ErwinConfig:
     mp_steps: int = 3
     radius: float = 0.766
     max_neighbors: int = 32
-    batch_size: int = 8
-    learning_rate: float = 1e-4
 
     @classmethod
     def tiny(cls) -> ErwinConfig:
@@ -231,7 +228,7 @@ class FlaxSurrogate:
         return self.module_cls(config=self.config)
 
     def build_graph(self, inputs: ModelInput) -> Any:
-        """Radius graph of the real nodes: a ``NeighborList`` (``indices [N, K]``, ``overflow``)."""
+        """Radius graph of the real nodes: a ``NeighborList`` (``indices [N, K]``, ``counts``)."""
         from thrombojax.graph.neighbors import radius_graph
 
         cfg = self.config
@@ -260,9 +257,7 @@ def _init_flax(model: FlaxSurrogate, rng: jax.Array, inputs: ModelInput, graph: 
 
 @struct.dataclass
 class EmptyGraph:
-    """The graph of a model that needs none: only the (always False) ``overflow`` flag."""
-
-    overflow: jax.Array
+    """The graph of a model that needs none (an empty pytree)."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -279,7 +274,7 @@ class ConstantVelocity:
     config: ConstantVelocityConfig
 
     def build_graph(self, inputs: ModelInput) -> EmptyGraph:
-        return EmptyGraph(overflow=jnp.zeros((), bool))
+        return EmptyGraph()
 
     def init(self, rng: jax.Array, inputs: ModelInput, graph: Any) -> dict:
         return {}

@@ -191,6 +191,8 @@ def generate_dataset(
         name=preset.name,
         source=SOURCE,
         generator_config={**preset.to_dict(), "seed": seed, "n_sims": n},
+        kind=preset.study,
+        skip_frames=preset.skip_frames,
     ) as w:
         for start in range(0, n, preset.batch_size):
             idx = list(range(start, min(start + preset.batch_size, n)))

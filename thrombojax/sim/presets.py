@@ -10,6 +10,7 @@ from __future__ import annotations
 import dataclasses
 
 from thrombojax.errors import ConfigError
+from thrombojax.study import DATASETS
 
 __all__ = ["Preset", "PRESETS", "get_preset"]
 
@@ -22,7 +23,8 @@ class Preset:
         name: preset name; kind: ``"bend"`` (one bent tube, rotated copies) or ``"tortuous"``
             (a random vessel per simulation).
         n_sims: simulations in the dataset; n_frames: frames after the initial one.
-        reference_wall_time_s: the study's Abaqus wall time per simulation.
+        study: the study's dataset this preset makes (``bendvessel`` or ``clotentry``: its
+            Abaqus time and skipped frames, :data:`thrombojax.study.DATASETS`).
         radius: nominal (inlet) vessel radius.
         leg_in, leg_out, bend_radius, bend_angle_deg: bent tube (kind "bend").
         rotation_step_deg, rotation_axis: simulation i is rotated by ``i * step`` about the axis.
@@ -51,7 +53,7 @@ class Preset:
     kind: str
     n_sims: int
     n_frames: int
-    reference_wall_time_s: float
+    study: str
     radius: float = 1.0
     leg_in: float = 5.0
     leg_out: float = 10.0
@@ -93,6 +95,20 @@ class Preset:
     max_substeps: int = 200_000
     batch_size: int = 5
 
+    def __post_init__(self) -> None:
+        if self.study not in DATASETS:
+            raise ConfigError(f"preset {self.name!r}: study must be one of {list(DATASETS)}")
+
+    @property
+    def reference_wall_time_s(self) -> float:
+        """The study's Abaqus wall time per simulation of this kind of dataset."""
+        return DATASETS[self.study].abaqus_s
+
+    @property
+    def skip_frames(self) -> int:
+        """Frames the study skipped before rollouts on this kind of dataset."""
+        return DATASETS[self.study].skip_frames
+
     def to_dict(self) -> dict:
         """JSON-serialisable dictionary of every field."""
         return dataclasses.asdict(self)
@@ -100,18 +116,18 @@ class Preset:
 
 PRESETS: dict[str, Preset] = {
     "bendvessel": Preset(
-        name="bendvessel", kind="bend", n_sims=20, n_frames=40, reference_wall_time_s=180.0,
+        name="bendvessel", kind="bend", n_sims=20, n_frames=40, study="bendvessel",
         n_buffer=161, safety=0.6, batch_size=20,
     ),
     "bendvessel-tiny": Preset(
-        name="bendvessel-tiny", kind="bend", n_sims=2, n_frames=8, reference_wall_time_s=180.0,
+        name="bendvessel-tiny", kind="bend", n_sims=2, n_frames=8, study="bendvessel",
         leg_in=2.0, leg_out=3.0, bend_radius=2.5, spacing=0.25, wall_rings=12, wall_around=12,
         clot_cells=6, clot_length=2.0, clot_start_range=(0.3, 0.8), n_buffer=129,
         poisson_range=(0.45, 0.49), max_substeps=40_000,
     ),
     "clotentry": Preset(
         name="clotentry", kind="tortuous", n_sims=10, n_frames=200,
-        reference_wall_time_s=1500.0, length=60.0, spacing=0.25, wall_rings=340,
+        study="clotentry", length=60.0, spacing=0.25, wall_rings=340,
         wall_around=64, clot_cross=12, clot_cells=30, clot_length=5.0,
         clot_start_range=(1.0, 3.0), ramp_time=12.0, flow_speed_range=(0.4, 0.6),
         oversize_range=(1.08, 1.2),
@@ -119,7 +135,7 @@ PRESETS: dict[str, Preset] = {
     ),
     "clotentry-tiny": Preset(
         name="clotentry-tiny", kind="tortuous", n_sims=2, n_frames=10,
-        reference_wall_time_s=1500.0, length=14.0, spacing=0.25, radius_end=1.0,
+        study="clotentry", length=14.0, spacing=0.25, radius_end=1.0,
         wobble=0.03, wall_rings=30, wall_around=12, clot_cross=4, clot_cells=6,
         clot_length=2.0, clot_start_range=(0.5, 1.5), n_buffer=129, batch_size=1,
         flow_speed_range=(0.12, 0.2), oversize_range=(1.12, 1.2), max_substeps=60_000,

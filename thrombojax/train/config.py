@@ -1,8 +1,9 @@
 """The training configuration: the study's knobs, with its values as defaults.
 
-Defaults follow the thesis (PAPER.md): 300 epochs, 10 warm-up epochs then cosine decay, AdamW,
-random rotations up to pi radians, and each model's batch size and learning rate (taken from its
-config dataclass, :mod:`thrombojax.models.registry`). Choices where the study is silent:
+Defaults follow the study: 300 epochs, 10 warm-up epochs then cosine decay, AdamW, random
+rotations up to pi radians, and each model's batch size and learning rate
+(:data:`thrombojax.study.TRAINING`; the model config holds architecture only, e.g. the graph
+``radius``, set through ``model_config``). Choices where the study is silent:
 
 * ``max_rotation`` is in **radians** (the thesis quotes pi and 1.5 radians); the CLI also accepts
   ``pi``, ``pi/2``, ``0.5pi``, ``2*pi`` and degrees with a ``deg`` suffix (``90deg``).
@@ -25,7 +26,7 @@ from typing import Any
 
 from thrombojax.errors import ConfigError
 
-__all__ = ["TrainConfig", "parse_angle", "load_config_file"]
+__all__ = ["TrainConfig", "RunConfig", "parse_angle", "load_config_file"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -34,12 +35,11 @@ class TrainConfig:
 
     Attributes:
         epochs: passes over the (real + generated) training samples.
-        batch_size: samples per step (``None``: the model config's study value).
-        lr: peak learning rate (``None``: the model config's study value).
+        batch_size: samples per step (``None``: the study's value for the model).
+        lr: peak learning rate (``None``: the study's value for the model).
         warmup_epochs: linear warm-up length in epochs (then cosine decay to 0).
         weight_decay: AdamW decoupled weight decay.
         grad_clip: global-norm gradient clip (``None``: off).
-        radius: override the model's graph radius (scaled coordinates).
         max_rotation: random rotation up to this angle in radians (0: off).
         nodes_per_sample: subsample this many nodes per sample (``None``: all).
         bary_ratio: generated (BaryCentricSampling) samples per real sample.
@@ -50,9 +50,12 @@ class TrainConfig:
         seed: initialisation, data order, augmentations.
         split_seed: which simulations are validation / test.
         n_val, n_test: simulations held out for validation / test.
-        skip_frames: first frames never used as the middle frame of a window.
+        skip_frames: first frames never used as the frame t of a window (default 0: every
+            window, the study's single-step setting).
+        rollout_steps: k of the k-step unrolled loss (1: the single-step loss; windows of
+            ``k + 2`` frames).
         tiny: start from the model's tiny config (tests, smoke runs).
-        model_config: overrides of the model config fields.
+        model_config: overrides of the model config fields (architecture, graph radius).
         checkpoint_every: also save the last checkpoint every this many steps (0: each epoch).
     """
 
@@ -62,7 +65,6 @@ class TrainConfig:
     warmup_epochs: float = 10.0
     weight_decay: float = 0.01
     grad_clip: float | None = None
-    radius: float | None = None
     max_rotation: float = math.pi
     nodes_per_sample: int | None = None
     bary_ratio: float = 0.0
@@ -75,6 +77,7 @@ class TrainConfig:
     n_val: int = 2
     n_test: int = 1
     skip_frames: int = 0
+    rollout_steps: int = 1
     tiny: bool = False
     model_config: dict = dataclasses.field(default_factory=dict)
     checkpoint_every: int = 0
@@ -90,6 +93,10 @@ class TrainConfig:
             raise ConfigError(f"bary_ratio must be >= 0, got {self.bary_ratio}")
         if self.nodes_per_sample is not None and self.nodes_per_sample < 1:
             raise ConfigError(f"nodes_per_sample must be >= 1, got {self.nodes_per_sample}")
+        if self.rollout_steps < 1:
+            raise ConfigError(f"rollout_steps must be >= 1, got {self.rollout_steps}")
+        if self.skip_frames < 0:
+            raise ConfigError(f"skip_frames must be >= 0, got {self.skip_frames}")
 
     def replace(self, **changes: Any) -> TrainConfig:
         """A copy with some fields changed; unknown fields raise :class:`ConfigError`."""
@@ -138,8 +145,45 @@ def parse_angle(text: str | float) -> float:
     raise ConfigError(f"cannot read angle {text!r}: use radians (1.57), pi, pi/2, 0.5pi or 90deg")
 
 
-def load_config_file(path: str | pathlib.Path) -> TrainConfig:
-    """Read a JSON training config (keys of :class:`TrainConfig`)."""
+@dataclasses.dataclass(frozen=True)
+class RunConfig:
+    """What defines a training run: the model, the dataset and the (resolved) training config.
+
+    A run's ``config.json`` holds these three keys (plus data derived from the dataset:
+    statistics, scaling, split, padding budget) and loads back with :func:`load_config_file`,
+    so ``thrombojax train --config RUN/config.json --out NEW`` repeats the run. In a saved run
+    ``train.batch_size`` and ``train.lr`` are resolved and ``train.model_config`` holds every
+    field of the model config.
+
+    Attributes:
+        model: registry name of the surrogate.
+        dataset: path of the dataset file.
+        train: the :class:`TrainConfig`.
+    """
+
+    model: str
+    dataset: str
+    train: TrainConfig
+
+    def to_dict(self) -> dict:
+        """JSON-ready dict (the keys ``model``, ``dataset``, ``train`` of ``config.json``)."""
+        return {"model": self.model, "dataset": self.dataset, "train": self.train.to_dict()}
+
+    @classmethod
+    def from_dict(cls, d: dict) -> RunConfig:
+        """Read the run keys of a ``config.json`` dict (other keys are derived data)."""
+        missing = [k for k in ("model", "dataset", "train") if k not in d]
+        if missing:
+            raise ConfigError(f"run config lacks {missing}")
+        if not isinstance(d["train"], dict):
+            raise ConfigError("run config: 'train' must be a JSON object")
+        return cls(model=str(d["model"]), dataset=str(d["dataset"]),
+                   train=TrainConfig.from_dict(d["train"]))
+
+
+def load_config_file(path: str | pathlib.Path) -> TrainConfig | RunConfig:
+    """Read a JSON config: a training config (keys of :class:`TrainConfig`) or a run's
+    ``config.json`` (a :class:`RunConfig`: model, dataset and training config)."""
     path = pathlib.Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"{path}: training config file not found")
@@ -150,6 +194,8 @@ def load_config_file(path: str | pathlib.Path) -> TrainConfig:
     if not isinstance(data, dict):
         raise ConfigError(f"{path}: a training config must be a JSON object")
     try:
+        if "train" in data and "model" in data:
+            return RunConfig.from_dict(data)
         return TrainConfig.from_dict(data)
     except ConfigError as err:
         raise ConfigError(f"{path}: {err}") from err

@@ -35,8 +35,14 @@ from thrombojax.data.batching import (
     make_batch,
     padding_budget,
 )
-from thrombojax.errors import CapacityOverflowError, ConfigError, ThrombojaxError
-from thrombojax.train.config import TrainConfig, load_config_file
+from thrombojax.data.scaling import fit_scaling
+from thrombojax.data.splits import split_simulations
+from thrombojax.errors import ConfigError, ThrombojaxError
+from thrombojax.io.hdf5 import open_dataset
+from thrombojax.models.registry import canonical_name, config_to_dict, create_model, get_config
+from thrombojax.simulator.step import make_step
+from thrombojax.study import training_defaults
+from thrombojax.train.config import RunConfig, TrainConfig, load_config_file
 from thrombojax.train.schedule import make_optimizer, make_schedule
 from thrombojax.train.state import (
     TrainedModel,
@@ -65,22 +71,25 @@ class TrainingDivergedError(ThrombojaxError, FloatingPointError):
     """The training loss became NaN or infinite; the last good checkpoint is kept."""
 
 
-def _resolve(config: Any, overrides: dict) -> TrainConfig:
+def _resolve(config: Any, overrides: dict) -> tuple[TrainConfig, RunConfig | None]:
+    run = None
     if config is None:
         config = TrainConfig()
     elif isinstance(config, str | pathlib.Path):
         config = load_config_file(config)
     elif isinstance(config, dict):
         config = TrainConfig.from_dict(config)
-    return config.replace(**overrides) if overrides else config
+    if isinstance(config, RunConfig):
+        run, config = config, config.train
+    return (config.replace(**overrides) if overrides else config), run
 
 
 def train(
-    dataset_path: str | pathlib.Path,
-    model_name: str,
+    dataset_path: str | pathlib.Path | None,
+    model_name: str | None,
     out_dir: str | pathlib.Path,
     *,
-    config: TrainConfig | dict | str | pathlib.Path | None = None,
+    config: TrainConfig | RunConfig | dict | str | pathlib.Path | None = None,
     resume: bool = False,
     progress: bool = True,
     callback: Callable[[int, dict], None] | None = None,
@@ -90,10 +99,12 @@ def train(
     """Train a surrogate on a dataset and write a run directory.
 
     Args:
-        dataset_path: a thrombojax HDF5 dataset.
-        model_name: ``mgn``, ``transolver`` or ``erwin`` (any registered model).
+        dataset_path: a thrombojax HDF5 dataset (``None``: the dataset of a run config).
+        model_name: ``mgn``, ``transolver`` or ``erwin`` (any registered model; ``None``: the
+            model of a run config).
         out_dir: the run directory (created; must hold no run unless ``resume``).
-        config: a :class:`TrainConfig`, its dict or a JSON file; ``overrides`` replace its fields.
+        config: a :class:`TrainConfig`, its dict, a :class:`RunConfig` or a JSON file of either
+            (a run's ``config.json`` repeats that run); ``overrides`` replace its fields.
         resume: continue the run in ``out_dir`` from its last checkpoint; its saved config is
             used, and overrides that contradict it raise :class:`ConfigError`.
         progress: show a tqdm progress bar.
@@ -105,20 +116,20 @@ def train(
     Returns:
         The best :class:`TrainedModel` (lowest validation MSE).
     """
-    from thrombojax.data.scaling import fit_scaling
-    from thrombojax.data.splits import split_simulations
-    from thrombojax.io.hdf5 import open_dataset
-    from thrombojax.models.registry import canonical_name, config_to_dict, create_model, get_config
-
     if distributed:
         jax.distributed.initialize()
     out_dir = pathlib.Path(out_dir)
+    cfg, run = _resolve(config, overrides)
+    dataset_path = dataset_path or (run.dataset if run else None)
+    model_name = model_name or (run.model if run else None)
+    if dataset_path is None or model_name is None:
+        raise ConfigError("train: name a dataset and a model (or a run's config.json as config)")
     model_name = canonical_name(model_name)
-    cfg = _resolve(config, overrides)
     if resume:
         saved = read_run_config(out_dir)
         saved_cfg = TrainConfig.from_dict(saved["train"])
-        asked = {k: v for k, v in overrides.items() if getattr(saved_cfg, k) != v}
+        asked = {k: v for k, v in overrides.items()
+                 if k != "model_config" and getattr(saved_cfg, k) != v}
         if saved["model"] != model_name or asked:
             raise ConfigError(
                 f"{out_dir}: --resume continues the saved run (model '{saved['model']}'); "
@@ -137,17 +148,18 @@ def train(
     scaling = fit_scaling(ds)
     split = split_simulations(list(ds.names), n_test=cfg.n_test, n_val=cfg.n_val,
                               seed=cfg.split_seed)
-    train_store = load_store(ds, split.train, scaling, skip=cfg.skip_frames)
-    val_store = load_store(ds, split.val, scaling, skip=cfg.skip_frames) if split.val else None
+    length = cfg.rollout_steps + 2
+    train_store = load_store(ds, split.train, scaling, skip=cfg.skip_frames, length=length)
+    val_store = (load_store(ds, split.val, scaling, skip=cfg.skip_frames, length=length)
+                 if split.val else None)
     stats = compute_target_stats(train_store, isotropic=cfg.max_rotation > 0)
 
-    model_over = dict(cfg.model_config)
-    if cfg.radius is not None:
-        model_over["radius"] = cfg.radius
-    model_cfg = get_config(model_name, tiny=cfg.tiny, **model_over)
+    model_cfg = get_config(model_name, tiny=cfg.tiny, **cfg.model_config)
     model = create_model(model_name, model_cfg)
-    batch_size = cfg.batch_size or getattr(model_cfg, "batch_size", 8)
-    lr = cfg.lr or getattr(model_cfg, "learning_rate", 1e-4)
+    study = training_defaults(model_name)
+    cfg = cfg.replace(batch_size=cfg.batch_size or int(study["batch_size"]),
+                      lr=cfg.lr or float(study["lr"]), model_config=config_to_dict(model_cfg))
+    batch_size, lr = cfg.batch_size, cfg.lr
     mesh = data_mesh()
     if batch_size % mesh.size:
         raise ConfigError(f"batch size {batch_size} is not a multiple of the {mesh.size} devices")
@@ -162,13 +174,14 @@ def train(
     batch_of = functools.partial(make_batch, train_store, budget=budget,
                                  nodes_per_sample=cfg.nodes_per_sample, seed=cfg.seed)
     run_key, init_key = jax.random.split(jax.random.PRNGKey(cfg.seed))
-    state = init_state(model, tx, init_key, batch_of(plan_of(epoch=0)[0]))
+    step_fn = make_step(model)
+    state = init_state(step_fn, tx, init_key, batch_of(plan_of(epoch=0)[0]))
     run_config = {
-        "model": model_name, "model_config": config_to_dict(model_cfg), "train": cfg.to_dict(),
-        "dataset": str(pathlib.Path(dataset_path).resolve()), "stats": stats.to_dict(),
-        "scaling": scaling.to_dict(), "batch_size": batch_size, "lr": lr, "budget": budget,
+        **RunConfig(model=model_name, dataset=str(pathlib.Path(dataset_path).resolve()),
+                    train=cfg).to_dict(),
+        "stats": stats.to_dict(), "scaling": scaling.to_dict(), "budget": budget,
         "steps_per_epoch": steps_per_epoch, "total_steps": total_steps, "devices": mesh.size,
-        "split": {"train": list(split.train), "val": list(split.val), "test": list(split.test)},
+        "split": split.to_dict(),
     }
     best = math.inf
     acc = np.zeros(3)  # running (loss * nodes, mse * nodes, nodes) of the current epoch
@@ -185,9 +198,9 @@ def train(
         radius=cfg.bary_radius or model_cfg.radius, max_neighbors=cfg.bary_max_neighbors,
     )
     augment = jax.jit(functools.partial(augment_batch, config=aug_cfg))
-    train_step = make_train_step(model, tx, stats, noise_std=cfg.noise_std,
-                                 noise_gamma=cfg.noise_gamma)
-    eval_step = make_eval_step(model, stats)
+    train_step = make_train_step(step_fn, tx, stats, noise_std=cfg.noise_std,
+                                 noise_gamma=cfg.noise_gamma, k=cfg.rollout_steps)
+    eval_step = make_eval_step(step_fn, stats, k=cfg.rollout_steps)
     val_batches = _eval_batches(val_store, budget, batch_size, cfg) if val_store else []
     state = replicate(state, mesh)
     ckpt = out_dir / "checkpoints"
@@ -216,11 +229,6 @@ def train(
                     f"{out_dir}: training loss became {metrics['loss']} at step {step + 1} "
                     f"(epoch {epoch}); the last good checkpoint is kept in {ckpt / 'last'}; "
                     "lower --lr or set grad_clip"
-                )
-            if metrics["overflow"]:
-                raise CapacityOverflowError(
-                    f"model '{model_name}': graph buffer overflow at step {step + 1}; raise its "
-                    "capacity in the model config"
                 )
             state = new_state
             acc += np.array([metrics["loss"], metrics["mse"], 1.0]) * metrics["nodes"]

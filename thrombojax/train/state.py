@@ -1,8 +1,9 @@
 """Training state, orbax checkpoints and the trained model a run leaves behind.
 
-Run directory layout (CONTRACT.md [E])::
+Run directory layout (``docs/architecture.md``)::
 
-    run_dir/config.json              the run's full config, normalisation stats and scaling
+    run_dir/config.json              the run (model, dataset, resolved TrainConfig: a RunConfig),
+                                     normalisation stats, scaling, split and padding budget
     run_dir/checkpoints/last/<step>/ the latest checkpoint (kept: 1)
     run_dir/checkpoints/best/<step>/ the checkpoint with the lowest validation MSE (kept: 1)
     run_dir/metrics.jsonl            one JSON object per epoch (and the NaN-guard event, if any)
@@ -28,7 +29,11 @@ import numpy as np
 import orbax.checkpoint as ocp
 from flax import struct
 
+from thrombojax.data.scaling import Scaling
+from thrombojax.data.splits import Split
 from thrombojax.errors import ConfigError
+from thrombojax.models.registry import Surrogate, config_from_dict, create_model
+from thrombojax.train.config import RunConfig
 from thrombojax.types import TargetStats
 
 __all__ = [
@@ -67,13 +72,17 @@ class TrainedModel:
         params: its variables.
         stats: acceleration normalisation statistics (training split, clot nodes).
         scaling: the dataset's isotropic map to [-1, 1] (:class:`thrombojax.data.scaling.Scaling`).
-        config: the run's full config (``config.json``).
+        run: the run's :class:`RunConfig` (model, dataset, resolved training config).
+        split: the simulations it was trained, validated and tested on.
+        config: the whole ``config.json`` (also the derived data: budget, steps, devices).
     """
 
-    model: Any
+    model: Surrogate
     params: Any
     stats: TargetStats
-    scaling: Any
+    scaling: Scaling
+    run: RunConfig
+    split: Split
     config: dict
 
 
@@ -194,9 +203,6 @@ def load_trained(run_dir: str | pathlib.Path, *, which: str = "best") -> Trained
     Returns:
         The :class:`TrainedModel`.
     """
-    from thrombojax.data.scaling import Scaling
-    from thrombojax.models.registry import config_from_dict, create_model
-
     if which not in ("best", "last"):
         raise ConfigError(f"which must be 'best' or 'last', got {which!r}")
     run_dir = pathlib.Path(run_dir)
@@ -205,11 +211,21 @@ def load_trained(run_dir: str | pathlib.Path, *, which: str = "best") -> Trained
     if latest_step(ckpt) is None:
         raise ConfigError(f"{run_dir}: no '{which}' checkpoint in {ckpt}")
     params, _, _ = restore_checkpoint(ckpt)
-    model = create_model(config["model"], config_from_dict(config["model"], config["model_config"]))
+    try:
+        run = RunConfig.from_dict(config)
+    except ConfigError as err:
+        raise ConfigError(f"{run_dir / 'config.json'}: {err}") from err
+    model = create_model(run.model, config_from_dict(run.model, run.train.model_config))
+    try:
+        split = Split.from_dict(config.get("split", {}))
+    except ConfigError as err:
+        raise ConfigError(f"{run_dir / 'config.json'}: {err}") from err
     return TrainedModel(
         model=model,
         params=params,
         stats=TargetStats.from_dict(config["stats"]),
         scaling=Scaling.from_dict(config["scaling"]),
+        run=run,
+        split=split,
         config=config,
     )

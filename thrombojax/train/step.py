@@ -1,7 +1,8 @@
 """The jitted training and evaluation steps, data parallel over devices with ``jax.sharding``.
 
-``train_step(state, batch, rng) -> (state, metrics)``: per sample (``jax.vmap`` of the
-single-sample model) optional training noise, graph, model, masked losses; the losses are pooled
+``train_step(state, batch, rng) -> (state, metrics)``: per sample (``jax.vmap`` over the windows)
+optional training noise, then the learned step of :mod:`thrombojax.simulator.step` once or ``k``
+times (:mod:`thrombojax.train.loss`), masked losses; the losses are pooled
 over all clot nodes of the batch (``sum / count``), differentiated and applied with the optax
 transformation (AdamW, warm-up + cosine, optional clipping: :mod:`thrombojax.train.schedule`).
 
@@ -37,7 +38,9 @@ import optax
 from jax.sharding import Mesh, NamedSharding
 from jax.sharding import PartitionSpec as P
 
-from thrombojax.train.loss import sample_loss_terms
+from thrombojax.models.registry import Surrogate
+from thrombojax.simulator.step import LearnedStep, make_step
+from thrombojax.train.loss import window_loss_terms
 from thrombojax.train.noise import add_training_noise
 from thrombojax.train.state import TrainState
 from thrombojax.types import TargetStats
@@ -79,9 +82,13 @@ def replicate(tree: Any, mesh: Mesh) -> Any:
     return jax.tree.map(lambda x: jax.device_put(x, sharding), tree)
 
 
+def _as_step(model: Surrogate | LearnedStep) -> LearnedStep:
+    return model if isinstance(model, LearnedStep) else make_step(model)
+
+
 def batch_loss(
-    model: Any,
-    params: Any,
+    model: Surrogate | LearnedStep,
+    params: dict,
     stats: TargetStats,
     batch: Any,
     rng: jax.Array | None,
@@ -89,19 +96,22 @@ def batch_loss(
     train: bool,
     noise_std: float = 0.0,
     noise_gamma: float = 0.1,
+    k: int = 1,
 ) -> tuple[jax.Array, dict[str, jax.Array]]:
     """Loss of a batch pooled over its clot nodes, and metrics.
 
     Args:
-        model, params, stats: the surrogate, its variables and the target statistics.
-        batch: :class:`thrombojax.data.batching.Batch` (``frames [B, 3, N, 3]``).
+        model: the surrogate (or its learned step). params, stats: its variables and statistics.
+        batch: :class:`thrombojax.data.batching.Batch` (``frames [B, W, N, 3]``, ``W >= k + 2``).
         rng: PRNG key for noise and dropout (``None`` in evaluation).
         train: training mode (noise, dropout).
         noise_std, noise_gamma: training noise (:mod:`thrombojax.train.noise`).
+        k: steps of the unrolled loss (1: the single-step loss).
     Returns:
         ``(loss, metrics)``: ``loss`` is the normalised-acceleration MSE; ``metrics`` holds
-        ``loss``, ``mse`` (the study's metric, scaled coordinates), ``nodes`` and ``overflow``.
+        ``loss``, ``mse`` (the study's metric, scaled coordinates) and ``nodes``.
     """
+    step = _as_step(model)
     size = batch.mask.shape[0]
     keys = jax.random.split(rng, size) if rng is not None else None
 
@@ -113,8 +123,8 @@ def batch_loss(
                 frames = add_training_noise(
                     noise_key, frames, node_type, mask, std=noise_std, gamma=noise_gamma
                 )
-        return sample_loss_terms(
-            model, params, stats, frames, node_type, mask, train=train, rng=model_key
+        return window_loss_terms(
+            step, params, stats, frames, node_type, mask, k=k, train=train, rng=model_key
         )
 
     if keys is None:
@@ -126,22 +136,18 @@ def batch_loss(
     count = terms["count"].sum()
     denom = jnp.maximum(count, 1.0)
     loss = terms["loss_sum"].sum() / denom
-    metrics = {
-        "loss": loss,
-        "mse": terms["mse_sum"].sum() / denom,
-        "nodes": count,
-        "overflow": jnp.any(terms["overflow"]),
-    }
+    metrics = {"loss": loss, "mse": terms["mse_sum"].sum() / denom, "nodes": count}
     return loss, metrics
 
 
 def make_train_step(
-    model: Any,
+    model: Surrogate | LearnedStep,
     tx: optax.GradientTransformation,
     stats: TargetStats,
     *,
     noise_std: float = 0.0,
     noise_gamma: float = 0.1,
+    k: int = 1,
     donate: bool = True,
 ) -> Callable[[TrainState, Any, jax.Array], tuple[TrainState, dict]]:
     """Build the jitted ``train_step(state, batch, rng) -> (state, metrics)``.
@@ -151,16 +157,19 @@ def make_train_step(
         tx: the optimiser.
         stats: target statistics (closed over, constants of the compiled step).
         noise_std, noise_gamma: training noise (0: off).
+        k: steps of the unrolled loss (1: single step).
         donate: donate the old state's buffers to the new one.
     Returns:
         The jitted step. ``metrics`` adds ``grad_norm`` and ``lr``-independent scalars.
     """
 
+    learned = _as_step(model)
+
     def step(state: TrainState, batch: Any, rng: jax.Array):
         def loss_fn(params):
             return batch_loss(
-                model, params, stats, batch, rng, train=True,
-                noise_std=noise_std, noise_gamma=noise_gamma,
+                learned, params, stats, batch, rng, train=True,
+                noise_std=noise_std, noise_gamma=noise_gamma, k=k,
             )
 
         (_, metrics), grads = jax.value_and_grad(loss_fn, has_aux=True)(state.params)
@@ -173,40 +182,35 @@ def make_train_step(
     return jax.jit(step, donate_argnums=(0,) if donate else ())
 
 
-def make_eval_step(model: Any, stats: TargetStats) -> Callable[[Any, Any], dict]:
+def make_eval_step(
+    model: Surrogate | LearnedStep, stats: TargetStats, *, k: int = 1
+) -> Callable[[Any, Any], dict]:
     """Build the jitted ``eval_step(params, batch) -> metrics`` (no noise, no dropout).
 
     ``metrics`` holds the pooled ``loss`` and ``mse`` of the batch and its clot ``nodes``, so the
     caller averages over batches weighted by ``nodes``.
     """
 
+    learned = _as_step(model)
+
     def step(params: Any, batch: Any):
-        _, metrics = batch_loss(model, params, stats, batch, None, train=False)
+        _, metrics = batch_loss(learned, params, stats, batch, None, train=False, k=k)
         return metrics
 
     return jax.jit(step)
 
 
 def init_state(
-    model: Any, tx: optax.GradientTransformation, rng: jax.Array, batch: Any
+    model: Surrogate | LearnedStep, tx: optax.GradientTransformation, rng: jax.Array, batch: Any
 ) -> TrainState:
     """Initialise the parameters on the first sample of ``batch`` and the optimiser state.
 
     Args:
-        model: the surrogate. tx: the optimiser. rng: PRNG key.
+        model: the surrogate (or its learned step). tx: the optimiser. rng: PRNG key.
         batch: a host :class:`thrombojax.data.batching.Batch` (its first sample is used).
     Returns:
         A :class:`TrainState` at step 0.
     """
-    from thrombojax.rollout import make_input
-
-    frames = jnp.asarray(batch.frames[0])
-    inputs = make_input(frames[0], frames[1], jnp.asarray(batch.node_type[0]),
-                        jnp.asarray(batch.mask[0]))
-
-    @jax.jit
-    def init(key):
-        params = model.init(key, inputs, model.build_graph(inputs))
-        return TrainState(step=jnp.zeros((), jnp.int32), params=params, opt_state=tx.init(params))
-
-    return init(rng)
+    frames = batch.frames[0]
+    params = _as_step(model).init(rng, frames[0], frames[1], batch.node_type[0], batch.mask[0])
+    return TrainState(step=jnp.zeros((), jnp.int32), params=params, opt_state=tx.init(params))

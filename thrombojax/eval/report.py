@@ -18,21 +18,19 @@ from __future__ import annotations
 import datetime
 import json
 import pathlib
-from typing import Any
 
 import numpy as np
 
-from thrombojax.evaluate import (
-    RolloutResult,
-    config_value,
-    default_skip,
-    markdown_table,
-    rollout_simulation,
-    scaled_simulation,
-    split_names,
-)
+from thrombojax import study
+from thrombojax.data.scaling import Scaling
+from thrombojax.errors import DatasetError
+from thrombojax.eval.plots import animate_rollout, plot_error_curves, plot_rollout_metrics
+from thrombojax.eval.rollouts import RolloutResult, rollout_simulation
+from thrombojax.eval.single_step import scaled_simulation, split_names
+from thrombojax.eval.tables import markdown_table
 from thrombojax.io.export import export_trajectory
-from thrombojax.viz import animate_rollout, plot_error_curves, plot_rollout_metrics
+from thrombojax.io.hdf5 import Simulation, open_dataset, write_dataset
+from thrombojax.train.state import load_trained
 
 __all__ = ["subset_cells", "save_rollout", "rollout_run"]
 
@@ -50,8 +48,8 @@ def subset_cells(cells: np.ndarray | None, node_index: np.ndarray, n_nodes: int)
 
 def save_rollout(
     result: RolloutResult,
-    sim: Any,
-    scaling: Any,
+    sim: Simulation,
+    scaling: Scaling,
     out_dir: pathlib.Path,
     *,
     model_name: str,
@@ -59,8 +57,6 @@ def save_rollout(
     gif: bool = True,
 ) -> dict[str, str]:
     """Write the files of one rollout (see the module docstring); returns label -> path."""
-    from thrombojax.io.hdf5 import Simulation, write_dataset
-
     n_all = sim.positions.shape[1]
     idx = result.node_index
 
@@ -129,8 +125,8 @@ def rollout_run(
         simulations: names to roll out (default: the run's ``split``).
         split: split used when ``simulations`` is not given.
         which: checkpoint, ``"best"`` or ``"last"``.
-        skip: skipped frames; the rollout starts at frame ``max(skip, 1)`` (default: 5, or 40
-            for ClotEntry datasets, as in the study).
+        skip: skipped frames; the rollout starts at frame ``max(skip, 1)`` (default: the
+            dataset's ``skip_frames`` attribute, :func:`thrombojax.study.skip_frames`).
         n_steps: predicted frames (default: to the end).
         n_nodes: fixed seeded node subset size (default: the run's ``nodes_per_sample``, the
             density it was trained on, else all nodes).
@@ -138,18 +134,17 @@ def rollout_run(
     Returns:
         JSON-ready summary (also written to ``rollout.json``; table in ``rollout.md``).
     """
-    from thrombojax.errors import DatasetError
-    from thrombojax.io.hdf5 import open_dataset
-    from thrombojax.train.state import load_trained
-
     trained = load_trained(run_dir, which=which)
     ds = open_dataset(dataset_path)
-    names = list(simulations) if simulations else split_names(trained.config, ds.names, split)
+    names = list(simulations) if simulations else split_names(trained, ds.names, split)
     missing = [n for n in names if n not in ds.names]
     if missing:
         raise DatasetError(f"{dataset_path}: no simulation(s) {missing}; have {list(ds.names)}")
-    skip = default_skip(ds) if skip is None else int(skip)
-    n_nodes = n_nodes or config_value(trained.config, "nodes_per_sample", default=None)
+    if not names:
+        raise DatasetError(f"{dataset_path}: no simulation to roll out (the run's '{split}' "
+                           "split is empty); name one with --sim or use --split all")
+    skip = study.skip_frames(ds) if skip is None else int(skip)
+    n_nodes = n_nodes or trained.run.train.nodes_per_sample
     out_dir = pathlib.Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     report, rows = {}, []

@@ -3,7 +3,7 @@
 All metrics are host-side numpy on already computed trajectories (a rollout is computed once
 under ``jax.lax.scan``; measuring it is cheap). Positions may be scaled or physical: the
 scaling is isotropic, so containment and centroid tests mean the same in both; MSE values
-are reported in the scaled [-1, 1] coordinates, like the study's table (``PAPER.md``).
+are reported in the scaled [-1, 1] coordinates, like the study's table.
 
 Conventions (following DeepMind ``meshgraphnets`` evaluators):
 - ``mse_per_step[k]`` is the mean over clot nodes and x, y, z of the squared error of
@@ -32,7 +32,6 @@ from thrombojax.types import NodeType
 
 __all__ = [
     "DEFAULT_HORIZONS",
-    "clot_mask_of",
     "mse_per_step",
     "horizon_mse",
     "centroid_error",
@@ -43,12 +42,6 @@ __all__ = [
 ]
 
 DEFAULT_HORIZONS: tuple[int, ...] = (1, 10, 50)
-
-
-def clot_mask_of(node_type: np.ndarray, mask: np.ndarray | None = None) -> np.ndarray:
-    """``[n_nodes]`` bool: real clot nodes."""
-    clot = np.asarray(node_type) == NodeType.CLOT
-    return clot if mask is None else clot & np.asarray(mask, bool)
 
 
 def mse_per_step(pred: np.ndarray, true: np.ndarray, clot_mask: np.ndarray) -> np.ndarray:

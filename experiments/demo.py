@@ -1,6 +1,6 @@
 """``make demo``: the whole pipeline on a small BendVessel-like problem, on the CPU, in minutes.
 
-    python -m thrombojax.demo --out demo_output [--tiny]
+    python experiments/demo.py --out demo_output [--tiny]      # what `make demo` runs
 
 1. generate a small BendVessel-like dataset with the built-in solver (a few rotated copies
    of the bent tube, fewer than the study's 20);
@@ -20,9 +20,20 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import json
 import pathlib
+import shutil
 import sys
 import time
+
+from thrombojax.errors import ThrombojaxError
+from thrombojax.eval.bench import bench, bench_markdown
+from thrombojax.eval.report import rollout_run
+from thrombojax.eval.single_step import evaluate_run
+from thrombojax.io.export import export_file
+from thrombojax.sim.generate import generate_dataset
+from thrombojax.sim.presets import get_preset
+from thrombojax.train.loop import train
 
 __all__ = ["DemoConfig", "run_demo", "main"]
 
@@ -80,16 +91,6 @@ def run_demo(out: str | pathlib.Path, config: DemoConfig = DemoConfig(), *,
     Returns:
         Paths of the dataset, run, tables, plots, animation and exports.
     """
-    import shutil
-
-    from thrombojax.bench import bench
-    from thrombojax.evaluate import evaluate_run
-    from thrombojax.io.export import export_file
-    from thrombojax.rollout_report import rollout_run
-    from thrombojax.sim.generate import generate_dataset
-    from thrombojax.sim.presets import get_preset
-    from thrombojax.train.loop import train
-
     out = pathlib.Path(out)
     if out.exists():
         shutil.rmtree(out)
@@ -160,10 +161,6 @@ def run_demo(out: str | pathlib.Path, config: DemoConfig = DemoConfig(), *,
 def _calibrate_epochs(data, folder: pathlib.Path, config: DemoConfig, common: dict,
                      progress: bool) -> int:
     """Train one epoch to time this machine; return the epochs that fit the budget."""
-    import shutil
-
-    from thrombojax.train.loop import train
-
     if config.train_minutes <= 0:
         return config.min_epochs
     stamps: list[float] = []
@@ -179,10 +176,6 @@ def _calibrate_epochs(data, folder: pathlib.Path, config: DemoConfig, common: di
 
 
 def _write_bench(result: dict, folder: pathlib.Path) -> None:
-    import json
-
-    from thrombojax.bench import bench_markdown
-
     folder.mkdir(parents=True, exist_ok=True)
     result.pop("table", None)
     (folder / "bench.json").write_text(json.dumps(result, indent=2))
@@ -190,8 +183,8 @@ def _write_bench(result: dict, folder: pathlib.Path) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Command-line entry: ``python -m thrombojax.demo --out DIR [--tiny]``."""
-    parser = argparse.ArgumentParser(prog="python -m thrombojax.demo", description=__doc__,
+    """Command-line entry: ``python experiments/demo.py --out DIR [--tiny]``."""
+    parser = argparse.ArgumentParser(prog="python experiments/demo.py", description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--out", default="demo_output", help="output folder (replaced)")
     parser.add_argument("--tiny", action="store_true", help="seconds-long version (tests)")
@@ -201,8 +194,6 @@ def main(argv: list[str] | None = None) -> int:
     config = DemoConfig.tiny() if args.tiny else DemoConfig()
     if args.train_minutes is not None:
         config = dataclasses.replace(config, train_minutes=args.train_minutes)
-    from thrombojax.errors import ThrombojaxError
-
     try:
         run_demo(args.out, config, progress=not args.quiet)
     except ThrombojaxError as err:

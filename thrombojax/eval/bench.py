@@ -1,11 +1,11 @@
 """Rollout speed: compile time, steady-state time, per-step time and speed-up over the solvers.
 
-The study's setting (``PAPER.md``): BendVessel 35 rollout steps x 977 nodes (Abaqus 180 s per
-simulation), ClotEntry 160 steps x 2,048 nodes (Abaqus 1500 s); we add ClotEntry at full
-resolution (~27,000 nodes). As in the study, rollout times are scaled to the full simulation
-length (x 40/35 and x 200/160) before the speed-up is computed, because the solver time covers
-every frame. Speed-up over our own solver uses its measured ``solver_wall_time_s`` on the same
-machine (read from a dataset, or measured by running a preset).
+The study's setting (:data:`thrombojax.study.DATASETS`): BendVessel 35 rollout steps x 977 nodes
+(Abaqus 180 s per simulation), ClotEntry 160 steps x 2,048 nodes (Abaqus 1500 s); we add
+ClotEntry at full resolution (~27,000 nodes). As in the study, rollout times are scaled to the
+full simulation length (x 40/35 and x 200/160) before the speed-up is computed, because the solver
+time covers every frame. Speed-up over our own solver uses its measured ``solver_wall_time_s`` on
+the same machine (read from a dataset, or measured by running a preset).
 
 Timing does not need trained weights: the cost of a rollout depends on the architecture and
 the shapes only, so models are random-initialised from their study configs unless trained runs
@@ -20,30 +20,35 @@ the compile time is a real compilation, not a cache read.
 from __future__ import annotations
 
 import dataclasses
-import datetime
 import json
-import os
 import pathlib
-import platform
 import statistics
 import time
 
 import jax
-import jax.numpy as jnp
 import numpy as np
 from tqdm.auto import tqdm
 
+from thrombojax import study
+from thrombojax.data.augment import subsample_indices
+from thrombojax.data.scaling import fit_scaling
 from thrombojax.errors import ConfigError
-from thrombojax.evaluate import default_skip, markdown_table
-from thrombojax.rollout import rollout_jit, select_subset
-from thrombojax.types import NodeType
+from thrombojax.eval.single_step import scaled_simulation
+from thrombojax.eval.tables import environment, markdown_table
+from thrombojax.io.hdf5 import open_dataset
+from thrombojax.models.registry import Surrogate, create_model, get_config, identity_stats
+from thrombojax.sim.generate import simulate
+from thrombojax.sim.presets import get_preset
+from thrombojax.simulator.rollout import as_step, rollout_jit
+from thrombojax.simulator.step import make_step
+from thrombojax.train.state import load_trained
+from thrombojax.types import NodeType, TargetStats
 
 __all__ = [
     "BenchCase",
     "STUDY_CASES",
     "synthetic_cloud",
     "time_rollout",
-    "environment",
     "bench",
     "bench_markdown",
 ]
@@ -68,11 +73,21 @@ class BenchCase:
     kind: str
 
 
-STUDY_CASES: dict[str, BenchCase] = {
-    "bendvessel": BenchCase("bendvessel", 977, 35, 40, 180.0, "bendvessel"),
-    "clotentry": BenchCase("clotentry", 2048, 160, 200, 1500.0, "clotentry"),
-    "clotentry-full": BenchCase("clotentry-full", 27000, 160, 200, 1500.0, "clotentry"),
-}
+def _study_cases() -> dict[str, BenchCase]:
+    bv, ce = study.DATASETS["bendvessel"], study.DATASETS["clotentry"]
+    return {
+        "bendvessel": BenchCase("bendvessel", bv.rollout_nodes, bv.rollout_steps, bv.n_frames,
+                                bv.abaqus_s, "bendvessel"),
+        "clotentry": BenchCase("clotentry", ce.rollout_nodes, ce.rollout_steps, ce.n_frames,
+                               ce.abaqus_s, "clotentry"),
+        "clotentry-full": BenchCase("clotentry-full", ce.n_nodes, ce.rollout_steps, ce.n_frames,
+                                    ce.abaqus_s, "clotentry"),
+    }
+
+
+STUDY_CASES: dict[str, BenchCase] = _study_cases()
+"""The study's rollout sizes (from :data:`thrombojax.study.DATASETS`) plus ClotEntry at full
+resolution."""
 
 
 def synthetic_cloud(n_nodes: int, *, clot_fraction: float = 0.3, seed: int = 0):
@@ -106,25 +121,26 @@ def synthetic_cloud(n_nodes: int, *, clot_fraction: float = 0.3, seed: int = 0):
     return x_prev.astype(np.float32), x_cur.astype(np.float32), node_type
 
 
-def time_rollout(model, params, stats, x_prev, x_cur, node_type, n_steps: int, *,
-                 repeats: int = 3) -> dict:
-    """Compile and time one rollout shape.
+def time_rollout(model: Surrogate, params: dict, stats: TargetStats, x_prev, x_cur, node_type,
+                 n_steps: int, *, repeats: int = 3) -> dict:
+    """Compile and time one rollout shape (the compiled rollout of the learned step).
 
     Returns:
         ``{"compile_s", "rollout_s" (median steady state), "rollout_min_s", "per_step_s",
-        "overflow"}``.
+        "finite"}``.
     """
+    step = as_step(model)
     args = (params, stats, np.asarray(x_prev, np.float32), np.asarray(x_cur, np.float32),
             np.asarray(node_type, np.int32), np.ones(len(node_type), bool))
     enabled = jax.config.jax_enable_compilation_cache
     jax.config.update("jax_enable_compilation_cache", False)  # time a real compilation
     try:
         t = time.perf_counter()
-        compiled = rollout_jit.lower(model, *args, n_steps=int(n_steps)).compile()
+        compiled = rollout_jit.lower(step, *args, n_steps=int(n_steps)).compile()
         compile_s = time.perf_counter() - t
     finally:
         jax.config.update("jax_enable_compilation_cache", enabled)
-    traj, overflow = compiled(*args)
+    traj = compiled(*args)
     jax.block_until_ready(traj)  # warm-up run (allocations), not timed
     times = []
     for _ in range(max(1, repeats)):
@@ -133,43 +149,23 @@ def time_rollout(model, params, stats, x_prev, x_cur, node_type, n_steps: int, *
         times.append(time.perf_counter() - t)
     med = statistics.median(times)
     return {"compile_s": compile_s, "rollout_s": med, "rollout_min_s": min(times),
-            "per_step_s": med / n_steps, "overflow": bool(np.asarray(overflow).any()),
-            "finite": bool(np.isfinite(np.asarray(traj)).all())}
-
-
-def environment() -> dict:
-    """Device, versions, date and load: recorded beside every figure."""
-    import flax
-
-    dev = jax.devices()[0]
-    return {
-        "device": f"{dev.platform}:{getattr(dev, 'device_kind', '')}", "n_devices": len(
-            jax.devices()), "jax": jax.__version__, "flax": flax.__version__,
-        "python": platform.python_version(), "machine": platform.machine(),
-        "cpu_count": os.cpu_count(), "load_avg_1m": os.getloadavg()[0],
-        "date": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
-    }
+            "per_step_s": med / n_steps, "finite": bool(np.isfinite(np.asarray(traj)).all())}
 
 
 def _solver_times(datasets: list, measure_presets: list[str]) -> dict[str, float]:
     """Mean measured solver wall time per simulation, keyed by kind (bendvessel / clotentry)."""
     out: dict[str, float] = {}
     for path in datasets:
-        from thrombojax.io.hdf5 import open_dataset
-
         ds = open_dataset(path)
         vals = [float(ds.sim_attrs(n)["solver_wall_time_s"]) for n in ds.names
                 if "solver_wall_time_s" in ds.sim_attrs(n)]
         if vals:
-            kind = "clotentry" if default_skip(ds) == 40 else "bendvessel"
-            out[kind] = float(np.mean(vals))
-    for preset in measure_presets:
-        from thrombojax.sim.generate import simulate
-        from thrombojax.sim.presets import get_preset
-
+            out[study.dataset_kind(ds)] = float(np.mean(vals))
+    for name in measure_presets:
+        preset = get_preset(name)
         t = time.perf_counter()
-        sim = simulate(get_preset(preset), 0)
-        out[preset.split("-")[0]] = float(sim.attrs.get("solver_wall_time_s",
+        sim = simulate(preset, 0)
+        out[preset.study] = float(sim.attrs.get("solver_wall_time_s",
                                                         time.perf_counter() - t))
     return out
 
@@ -177,13 +173,10 @@ def _solver_times(datasets: list, measure_presets: list[str]) -> dict[str, float
 def _inputs(case: BenchCase, dataset, seed: int):
     if dataset is None:
         return synthetic_cloud(case.n_nodes, seed=seed), "synthetic bent tube"
-    from thrombojax.data.scaling import fit_scaling
-    from thrombojax.evaluate import scaled_simulation
-
     name = dataset.names[0]
     pos, node_type = scaled_simulation(dataset, name, fit_scaling(dataset))
-    t0 = min(max(default_skip(dataset), 1), pos.shape[0] - 1)
-    idx = select_subset(node_type, case.n_nodes, seed=seed)
+    t0 = min(max(study.skip_frames(dataset), 1), pos.shape[0] - 1)
+    idx = subsample_indices(seed, node_type, case.n_nodes)
     return (pos[t0 - 1, idx], pos[t0, idx], node_type[idx]), f"{dataset.path}:{name}"
 
 
@@ -220,16 +213,12 @@ def bench(
     Returns:
         JSON-ready ``{"environment", "note", "results": [...]}``.
     """
-    from thrombojax.models.registry import create_model, get_config
-
     unknown = [c for c in cases if c not in STUDY_CASES]
     if unknown:
         raise ConfigError(f"unknown bench case(s) {unknown}; known: {list(STUDY_CASES)}")
     runs = dict(runs or {})
     ds = None
     if dataset is not None:
-        from thrombojax.io.hdf5 import open_dataset
-
         ds = open_dataset(dataset)
     solver = _solver_times(list(solver_datasets), list(measure_solver))
     results, inits = [], {}
@@ -240,15 +229,14 @@ def bench(
             case = dataclasses.replace(case, n_nodes=int(n_nodes))
         (x_prev, x_cur, node_type), source = _inputs(case, ds, seed)
         if model_name in runs:
-            from thrombojax.train.state import load_trained
-
             trained = load_trained(runs[model_name])
             model, params, stats, weights = trained.model, trained.params, trained.stats, "trained"
         else:
             model = create_model(model_name, get_config(model_name, tiny=tiny))
-            stats = _unit_stats()
+            stats = identity_stats()
             if model_name not in inits:  # parameters do not depend on the node count
-                inits[model_name] = _init_params(model, x_prev, x_cur, node_type, seed)
+                inits[model_name] = make_step(model).init(
+                    jax.random.key(seed), x_prev, x_cur, node_type, np.ones(len(node_type), bool))
             params = inits[model_name]
             weights = "random init (" + ("tiny" if tiny else "study") + " config)"
         steps = case.n_steps if max_steps is None else min(case.n_steps, int(max_steps))
@@ -276,23 +264,6 @@ def bench(
         (out_dir / "bench.md").write_text(bench_markdown(out))
     out["table"] = bench_markdown(out)
     return out
-
-
-def _init_params(model, x_prev, x_cur, node_type, seed: int):
-    """Random parameters, initialised under one ``jit`` (eager Flax init compiles op by op)."""
-    from thrombojax.rollout import make_input
-
-    def init(xp, xc, nt):
-        inputs = make_input(xp, xc, nt, jnp.ones(nt.shape[0], bool))
-        return model.init(jax.random.key(seed), inputs, model.build_graph(inputs))
-
-    return jax.jit(init)(x_prev, x_cur, node_type)
-
-
-def _unit_stats():
-    from thrombojax.models.registry import identity_stats
-
-    return identity_stats()
 
 
 def _speedup(x: float) -> str:

@@ -1,0 +1,11 @@
+"""The evaluation layer: everything that measures a trained surrogate or shows it.
+
+Modules: :mod:`~thrombojax.eval.metrics` (errors, centroid, containment),
+:mod:`~thrombojax.eval.single_step` (the study's single-step metric, ``thrombojax evaluate``),
+:mod:`~thrombojax.eval.rollouts` (a rollout measured beside the truth and constant velocity),
+:mod:`~thrombojax.eval.report` (``thrombojax rollout``: trajectories, ParaView files, plots),
+:mod:`~thrombojax.eval.plots` (matplotlib figures and animations),
+:mod:`~thrombojax.eval.bench` (rollout speed, ``thrombojax bench``) and
+:mod:`~thrombojax.eval.tables` (markdown tables, the environment record).
+Nothing below this layer (``train/``, ``simulator/``, ``models/``, ...) imports it.
+"""

@@ -1,0 +1,54 @@
+"""Shared report helpers: markdown tables and the environment every recorded result carries."""
+
+from __future__ import annotations
+
+import datetime
+import os
+import pathlib
+import platform
+import sys
+from typing import Any
+
+import flax
+import jax
+import numpy as np
+import optax
+
+from thrombojax import __version__
+
+__all__ = ["markdown_table", "environment"]
+
+
+def markdown_table(header: list[str], rows: list[list[Any]]) -> str:
+    """A GitHub markdown table; floats printed with 4 significant digits (``%.4g``)."""
+    def fmt(v):
+        return f"{v:.4g}" if isinstance(v, float) else str(v)
+
+    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    lines += ["| " + " | ".join(fmt(v) for v in row) + " |" for row in rows]
+    return "\n".join(lines) + "\n"
+
+
+def environment() -> dict:
+    """Device, versions, date, command and machine load: recorded beside every figure.
+
+    The one record of where a result was measured, used by ``thrombojax bench``, the demo,
+    the experiment results and the scripts in ``benchmarks/``.
+    """
+    dev = jax.devices()[0]
+    return {
+        "date": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
+        "command": " ".join([pathlib.Path(sys.argv[0]).name, *sys.argv[1:]]),
+        "device": f"{dev.platform}:{getattr(dev, 'device_kind', '')}",
+        "n_devices": jax.device_count(),
+        "cpu_count": os.cpu_count(),
+        "load_avg_1_5_15": [round(x, 2) for x in os.getloadavg()],
+        "python": platform.python_version(),
+        "platform": platform.platform(),
+        "jax": jax.__version__,
+        "jaxlib": getattr(jax.lib, "__version__", None),
+        "flax": flax.__version__,
+        "optax": optax.__version__,
+        "numpy": np.__version__,
+        "thrombojax": __version__,
+    }

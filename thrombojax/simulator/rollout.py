@@ -1,0 +1,137 @@
+"""Rollouts: the learned step applied in a loop, one ``jax.lax.scan`` compiled once.
+
+- :func:`unroll`: ``n`` steps from ``(s_{t-1}, s_t)`` as a differentiable ``lax.scan``; the k-step
+  training loss and the rollout are both this function.
+- :func:`rollout`: the compiled rollout of a surrogate (:data:`rollout_jit`).
+- :func:`constant_velocity_rollout`: the baseline every error is reported beside, the same rollout
+  with the :class:`~thrombojax.models.registry.ConstantVelocity` surrogate (zero acceleration).
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from thrombojax.errors import ConfigError
+from thrombojax.models.registry import Surrogate, create_model, identity_stats
+from thrombojax.simulator.step import LearnedStep, make_step
+from thrombojax.types import TargetStats
+
+__all__ = ["unroll", "rollout_jit", "rollout", "constant_velocity_rollout", "as_step"]
+
+
+def as_step(model: Surrogate | LearnedStep) -> LearnedStep:
+    """A :class:`LearnedStep` from a surrogate (or the step itself); checks it is hashable."""
+    step = model if isinstance(model, LearnedStep) else make_step(model)
+    try:
+        hash(step)
+    except TypeError as err:
+        raise ConfigError(
+            f"rollout: model {type(step.model).__name__} is not hashable; a Surrogate must be a "
+            "frozen dataclass whose config holds tuples, not lists"
+        ) from err
+    return step
+
+
+def unroll(
+    step: LearnedStep,
+    params: dict,
+    stats: TargetStats,
+    x_prev: jax.Array,
+    x_cur: jax.Array,
+    node_type: jax.Array,
+    mask: jax.Array,
+    n_steps: int,
+    *,
+    train: bool = False,
+    rng: jax.Array | None = None,
+) -> tuple[jax.Array, jax.Array]:
+    """Apply the learned step ``n_steps`` times, feeding each prediction back (``lax.scan``).
+
+    Differentiable end to end (the k-step loss takes gradients through every step). Vessel and
+    padded nodes stay at ``x_cur`` exactly (the step copies them).
+
+    Args:
+        step: the learned simulator. params, stats: its variables and statistics.
+        x_prev, x_cur: ``[n_nodes, 3]`` scaled s_{t0-1}, s_{t0}.
+        node_type: ``[n_nodes]``. mask: ``[n_nodes]`` real nodes.
+        n_steps: number of steps (static).
+        train: training mode (dropout). rng: dropout key, folded with the step index.
+    Returns:
+        ``(positions [n_steps, n_nodes, 3], outputs [n_steps, n_nodes, 3])``: s_{t0+1} ...
+        s_{t0+n_steps} and the raw model outputs of each step.
+    """
+
+    def body(carry, i):
+        prev, cur = carry
+        key = None if rng is None else jax.random.fold_in(rng, i)
+        out = step(params, stats, prev, cur, node_type, mask, train=train, rng=key)
+        return (cur, out.positions), (out.positions, out.output)
+
+    _, (positions, outputs) = jax.lax.scan(body, (x_prev, x_cur), jnp.arange(n_steps))
+    return positions, outputs
+
+
+def _rollout_impl(step, params, stats, x0_prev, x0, node_type, mask, n_steps):
+    return unroll(step, params, stats, x0_prev, x0, node_type, mask, n_steps)[0]
+
+
+rollout_jit = jax.jit(_rollout_impl, static_argnames=("step", "n_steps"))
+"""The compiled rollout ``(step, params, stats, x0_prev, x0, node_type, mask, n_steps) ->
+trajectory [n_steps, n_nodes, 3]``; one compilation per (step, shapes, n_steps).
+``rollout_jit._cache_size()`` counts the compilations."""
+
+
+def rollout(
+    model: Surrogate | LearnedStep,
+    params: dict,
+    stats: TargetStats,
+    x0_prev: jax.Array,
+    x0: jax.Array,
+    node_type: jax.Array,
+    mask: jax.Array,
+    n_steps: int,
+) -> jax.Array:
+    """Autoregressive rollout as one compiled ``jax.lax.scan`` over the learned step.
+
+    Compiled once per (model, node count, ``n_steps``): a second call with new positions
+    or parameters of the same shapes reuses the compiled program. Works on any fixed node
+    set: the full resolution cloud or a subset kept for the whole rollout
+    (:func:`thrombojax.data.augment.select_subset`).
+
+    Args:
+        model: a surrogate or its :class:`LearnedStep`.
+        params, stats: its parameters and target statistics.
+        x0_prev: ``[n_nodes, 3]`` scaled positions s_{t0-1}.
+        x0: ``[n_nodes, 3]`` scaled positions s_{t0}.
+        node_type: ``[n_nodes]`` NodeType values. mask: ``[n_nodes]`` real-node mask.
+        n_steps: number of predicted frames (static).
+    Returns:
+        ``[n_steps, n_nodes, 3]`` predicted s_{t0+1} ... s_{t0+n_steps} (device array); vessel and
+        padded nodes equal ``x0`` exactly.
+    """
+    step = as_step(model)
+    if int(n_steps) < 1:
+        raise ConfigError(f"rollout: n_steps must be >= 1, got {n_steps}")
+    return rollout_jit(
+        step, params, stats,
+        jnp.asarray(x0_prev, jnp.float32), jnp.asarray(x0, jnp.float32),
+        jnp.asarray(node_type, jnp.int32), jnp.asarray(mask, bool), int(n_steps),
+    )
+
+
+def constant_velocity_rollout(
+    x0_prev: np.ndarray, x0: np.ndarray, node_type: np.ndarray, mask: np.ndarray, n_steps: int
+) -> np.ndarray:
+    """The constant-velocity baseline ``s_{t0+k} = s_{t0} + k (s_{t0} - s_{t0-1})`` (clot nodes).
+
+    The rollout of the :class:`~thrombojax.models.registry.ConstantVelocity` surrogate with
+    identity statistics (zero physical acceleration), so the baseline runs the same code as
+    every model.
+
+    Returns:
+        ``[n_steps, n_nodes, 3]`` float32 numpy; vessel and padded nodes stay at ``x0``.
+    """
+    cv = create_model("constant_velocity")
+    return np.asarray(rollout(cv, {}, identity_stats(), x0_prev, x0, node_type, mask, n_steps))
