@@ -154,3 +154,26 @@ def test_resume_after_sigkill_is_exact(dataset, tmp_path):
     assert strip == [{k: v for k, v in json.loads(ln).items() if k != "time_s"} for ln in log_b]
     with pytest.raises(ConfigError):
         train(dataset, "mgn", resumed, progress=False, resume=True, epochs=7)
+
+
+def test_run_config_reloads_and_repeats_the_run(dataset, tmp_path):
+    """config.json loads back into the same dataclasses; --config RUN/config.json repeats RUN."""
+    from thrombojax.train.config import RunConfig, load_config_file
+
+    first = tmp_path / "first"
+    train(dataset, "mgn", first, progress=False, epochs=1, rollout_steps=2,
+          model_config={"hidden": 12}, **SMALL)
+    run = load_config_file(first / "config.json")
+    assert isinstance(run, RunConfig) and run.model == "mgn"
+    assert run.train.rollout_steps == 2 and run.train.model_config["hidden"] == 12
+    assert run.train.batch_size == 4 and run.train.lr == 3e-3
+    assert RunConfig.from_dict(run.to_dict()) == run
+    assert load_trained(first).run == run
+    again = tmp_path / "again"
+    assert main(["train", "--config", str(first / "config.json"), "--out", str(again),
+                 "--quiet"]) == 0
+    a, b = ((json.loads(ln) for ln in (d / "metrics.jsonl").read_text().splitlines())
+            for d in (first, again))
+    ra, rb = next(a), next(b)
+    assert ra["train_loss"] == rb["train_loss"] and ra["val_mse"] == rb["val_mse"]
+    assert load_config_file(again / "config.json") == run

@@ -70,6 +70,13 @@ class ModelInput:
         return self.positions.shape[-2]
 
     @property
+    def node_features(self) -> jax.Array:
+        """``[n_nodes, 3 + NUM_NODE_TYPES]`` the per-node input of every model: the
+        (normalised) velocity and the node-type one-hot (positions enter only through the
+        graph's relative displacements)."""
+        return jnp.concatenate([self.velocity, node_type_one_hot(self.node_type)], axis=-1)
+
+    @property
     def clot_mask(self) -> jax.Array:
         """``[n_nodes]`` bool: real clot nodes (the nodes a loss or metric may see)."""
         return clot_mask(self.node_type, self.mask)

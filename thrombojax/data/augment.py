@@ -1,6 +1,6 @@
 """Data augmentations of one training window (s_{t-1}, s_t, s_{t+1}): pure functions with a seed.
 
-Three augmentations of the study (PAPER.md "Data augmentation"), each applied identically to the
+Three augmentations of the study, each applied identically to the
 three frames of a window so the dynamics stay consistent:
 
 * :func:`random_rotation` / :func:`rotate_window`: a random rotation about a random axis
@@ -32,6 +32,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from thrombojax.errors import ConfigError
+from thrombojax.graph.neighbors import radius_graph
 from thrombojax.types import NUM_NODE_TYPES, NodeType
 
 __all__ = [
@@ -146,8 +147,6 @@ def find_sample_triangles(
         ``(triangles [n_nodes * K (K - 1) / 2, 3] int32, valid [same] bool)``, rows
         ``(i, a, b)`` with ``i < a < b`` where valid.
     """
-    from thrombojax.graph.neighbors import radius_graph
-
     nbrs = radius_graph(positions, radius, max_neighbors, mask=mask)
     idx = nbrs.indices.astype(jnp.int32)
     n, k = idx.shape

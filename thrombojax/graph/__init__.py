@@ -11,7 +11,8 @@ from thrombojax.graph.balltree import (
     rotated_partitions,
     rotation_matrix,
 )
-from thrombojax.graph.grid import GridSpec, estimate_capacity, grow
+from thrombojax.graph.capacity import estimate_capacity, grow
+from thrombojax.graph.grid import GridSpec
 from thrombojax.graph.neighbors import (
     AUTO_GRID_MIN_NODES,
     NeighborList,

@@ -43,8 +43,9 @@ import numpy as np
 from flax import struct
 
 from thrombojax.errors import CapacityOverflowError, ConfigError
+from thrombojax.graph.capacity import estimate_capacity, grow
 from thrombojax.graph.dense import dense_search
-from thrombojax.graph.grid import GridSpec, _has_heavy, estimate_capacity, grid_search, grow
+from thrombojax.graph.grid import GridSpec, _has_heavy, grid_search
 
 __all__ = [
     "AUTO_GRID_MIN_NODES",
@@ -245,7 +246,7 @@ def radius_graph_checked(
 ) -> tuple[NeighborList, GridSpec | None]:
     """Host wrapper: build the graph (jitted) and re-allocate on overflow, never truncate.
 
-    On overflow the grid is grown (:func:`thrombojax.graph.grid.grow`) and the graph rebuilt, up
+    On overflow the grid is grown (:func:`thrombojax.graph.capacity.grow`) and the graph rebuilt, up
     to ``max_retries`` times; a grid search that still overflows falls back to the dense method
     when ``method="auto"``.
 

@@ -2,7 +2,7 @@
 
 A :class:`Simulation` is one trajectory: positions ``[T, N, 3]`` in physical units, one node type
 per node, optional clot tetrahedra and wall triangles, and a flat dictionary of attributes.
-:func:`validate_simulation` enforces the schema of ``DESIGN.md``; the HDF5 writer and reader
+:func:`validate_simulation` enforces the schema of ``docs/dataset.md``; the HDF5 writer and reader
 (:mod:`thrombojax.io.hdf5`) and every importer call it, so a bad simulation never enters or
 leaves a dataset file. Every error names the file, the simulation and the field:
 ``"<file>: simulation '<name>': field '<field>': <problem>"``.

@@ -57,7 +57,7 @@ from thrombojax.graph.balltree import BallTree, build_balltree, level_sizes
 from thrombojax.graph.neighbors import NeighborList, radius_graph
 from thrombojax.models.layers import MPNNEmbedding, RMSNorm, SwiGLU
 from thrombojax.models.registry import ErwinConfig, FlaxSurrogate
-from thrombojax.types import ModelInput, node_type_one_hot
+from thrombojax.types import ModelInput
 
 __all__ = [
     "ErwinGraph",
@@ -373,7 +373,7 @@ class Erwin(nn.Module):
     def __call__(self, inputs: ModelInput, graph: ErwinGraph, train: bool = False) -> jax.Array:
         """Returns ``[n, 3]`` normalised acceleration (``train`` unused: no dropout)."""
         c = self.config
-        feats = jnp.concatenate([inputs.velocity, node_type_one_hot(inputs.node_type)], axis=-1)
+        feats = inputs.node_features
         net = ErwinNet(
             hidden=c.hidden, enc_heads=tuple(c.enc_heads), enc_depths=tuple(c.enc_depths),
             dec_heads=tuple(c.dec_heads), dec_depths=tuple(c.dec_depths),

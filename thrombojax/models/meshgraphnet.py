@@ -39,16 +39,11 @@ import jraph
 from thrombojax.graph.neighbors import NeighborList, edge_displacements, to_graphs_tuple
 from thrombojax.models.layers import MLP
 from thrombojax.models.registry import FlaxSurrogate, MeshGraphNetConfig
-from thrombojax.types import ModelInput, node_type_one_hot
+from thrombojax.types import ModelInput
 
-__all__ = ["MeshGraphNet", "MeshGraphNetSurrogate", "node_features", "edge_features"]
+__all__ = ["MeshGraphNet", "MeshGraphNetSurrogate", "edge_features"]
 
 OUTPUT_DIM: int = 3
-
-
-def node_features(inputs: ModelInput) -> jax.Array:
-    """Node input ``[n_nodes, 3 + NUM_NODE_TYPES]``: velocity and node-type one-hot."""
-    return jnp.concatenate([inputs.velocity, node_type_one_hot(inputs.node_type)], axis=-1)
 
 
 def edge_features(positions: jax.Array, graph: NeighborList) -> jax.Array:
@@ -86,7 +81,7 @@ class MeshGraphNet(nn.Module):
         hidden = self.config.hidden
         n = inputs.n_nodes
         g: jraph.GraphsTuple = to_graphs_tuple(
-            graph, node_features(inputs), edge_features(inputs.positions, graph)
+            graph, inputs.node_features, edge_features(inputs.positions, graph)
         )
         nodes = self._mlp(hidden, norm=True, name="node_encoder")(g.nodes)  # [N+1, H]
         edges = self._mlp(hidden, norm=True, name="edge_encoder")(g.edges)  # [N*K, H]

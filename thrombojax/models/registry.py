@@ -39,6 +39,7 @@ import jax.numpy as jnp
 from flax import struct
 
 from thrombojax.errors import ConfigError
+from thrombojax.graph.neighbors import radius_graph
 from thrombojax.types import ModelInput, TargetStats
 
 __all__ = [
@@ -229,8 +230,6 @@ class FlaxSurrogate:
 
     def build_graph(self, inputs: ModelInput) -> Any:
         """Radius graph of the real nodes: a ``NeighborList`` (``indices [N, K]``, ``counts``)."""
-        from thrombojax.graph.neighbors import radius_graph
-
         cfg = self.config
         return radius_graph(inputs.positions, cfg.radius, cfg.max_neighbors, mask=inputs.mask,
                             loop=self.self_loops)

@@ -46,7 +46,7 @@ import jax.numpy as jnp
 from thrombojax.graph.neighbors import NeighborList
 from thrombojax.models.layers import MLP, MPNNEmbedding, gelu, layer_norm
 from thrombojax.models.registry import FlaxSurrogate, TransolverConfig
-from thrombojax.types import ModelInput, node_type_one_hot
+from thrombojax.types import ModelInput
 
 __all__ = ["PhysicsAttention", "TransolverBlock", "Transolver", "TransolverSurrogate"]
 
@@ -148,7 +148,7 @@ class Transolver(nn.Module):
             ``[n_nodes, 3]``.
         """
         cfg = self.config
-        feats = jnp.concatenate([inputs.velocity, node_type_one_hot(inputs.node_type)], axis=-1)
+        feats = inputs.node_features
         positions = jax.lax.stop_gradient(inputs.positions)
         emb = MPNNEmbedding(cfg.hidden, cfg.mp_steps, name="embedding")(
             feats, positions, graph.indices

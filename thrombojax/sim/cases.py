@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import dataclasses
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 
@@ -177,6 +178,4 @@ def build_case(preset: Preset, index: int, seed: int) -> Case:
 
 def stack_cases(cases: list[Case]) -> CaseParams:
     """Stack the params of cases with identical meshes along a new leading axis (for vmap)."""
-    import jax
-
     return jax.tree.map(lambda *a: jnp.stack(a), *[c.params for c in cases])

@@ -16,7 +16,7 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
-from thrombojax.types import NodeType
+from thrombojax.types import clot_mask
 
 __all__ = ["add_training_noise"]
 
@@ -43,6 +43,6 @@ def add_training_noise(
     """
     if std == 0.0:
         return frames
-    moving = (mask & (node_type == NodeType.CLOT))[:, None]
+    moving = clot_mask(node_type, mask)[:, None]
     noise = jnp.where(moving, std * jax.random.normal(key, frames.shape[1:], frames.dtype), 0.0)
     return jnp.stack([frames[0], frames[1] + noise, frames[2] + (1.0 - gamma) * noise])
