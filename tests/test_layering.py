@@ -88,3 +88,13 @@ def test_checker_finds_an_upward_import(tmp_path, monkeypatch):
 def test_modules_stay_small(path):
     """Modules stay under 400 lines."""
     assert len(path.read_text().splitlines()) <= 400, path
+
+
+def test_experiment_configs_load():
+    """Every config in experiments/configs is a TrainConfig that `thrombojax train` accepts."""
+    from thrombojax.train.config import TrainConfig, load_config_file
+
+    configs = sorted((PACKAGE.parent / "experiments" / "configs").glob("*.json"))
+    assert configs
+    for path in configs:
+        assert isinstance(load_config_file(path), TrainConfig), path
