@@ -33,6 +33,7 @@ import numpy as np
 from tqdm import tqdm
 
 from thrombojax.errors import DatasetError
+from thrombojax.io.outputs import TEMP_TAG, check_target, clean_temporaries
 from thrombojax.io.schema import (
     KNOWN_NODE_TYPES,
     VESSEL_TOLERANCE,
@@ -76,7 +77,8 @@ class DatasetWriter:
         source: solver name or import origin (file attribute).
         units: unit of the positions (file attribute).
         generator_config: JSON-serialisable preset of the generator, when generated.
-        overwrite: replace an existing file at ``path`` (else FileExistsError).
+        overwrite: replace an existing file at ``path`` (else OutputError, a FileExistsError).
+        inputs: the files this dataset is made from; ``path`` may never be one of them.
         vessel_tol: relative tolerance of the vessel-rigidity check.
     """
 
@@ -89,6 +91,7 @@ class DatasetWriter:
         units: str = "vessel radius",
         generator_config: dict | None = None,
         overwrite: bool = True,
+        inputs: Iterable[str | os.PathLike] = (),
         vessel_tol: float = VESSEL_TOLERANCE,
     ):
         self.path = Path(path)
@@ -104,19 +107,21 @@ class DatasetWriter:
         except (TypeError, ValueError) as err:
             raise simulation_error(self.path, None, "generator_config", str(err)) from err
         self._overwrite = overwrite
+        self._inputs = tuple(inputs)
         self._vessel_tol = vessel_tol
         self._tmp: Path | None = None
         self._h5: h5py.File | None = None
         self.names: list[str] = []
 
     def _check_target(self) -> None:
-        if not self._overwrite and self.path.exists():
-            raise FileExistsError(f"{self.path}: already exists (pass overwrite=True to replace)")
+        check_target(self.path, inputs=self._inputs, force=self._overwrite, what="dataset")
 
     def __enter__(self) -> DatasetWriter:
         self._check_target()
         self.path.parent.mkdir(parents=True, exist_ok=True)
-        self._tmp = self.path.with_name(f".{self.path.name}.{uuid.uuid4().hex[:8]}.tmp")
+        clean_temporaries(self.path.parent)
+        self._tmp = self.path.with_name(
+            f".{self.path.name}{TEMP_TAG}{os.getpid()}-{uuid.uuid4().hex[:8]}.tmp")
         self._h5 = h5py.File(self._tmp, "w")
         created = datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds")
         self._h5.attrs.update({**self._file_attrs, "created": created})
@@ -182,6 +187,7 @@ def write_dataset(
     units: str = "vessel radius",
     generator_config: dict | None = None,
     overwrite: bool = True,
+    inputs: Iterable[str | os.PathLike] = (),
     progress: bool = False,
 ) -> Path:
     """Write simulations (any iterable, consumed one at a time) to ``path`` atomically.
@@ -190,7 +196,7 @@ def write_dataset(
         The path written. Arguments as for :class:`DatasetWriter`.
     """
     writer = DatasetWriter(path, name=name, source=source, units=units,
-                           generator_config=generator_config, overwrite=overwrite)
+                           generator_config=generator_config, overwrite=overwrite, inputs=inputs)
     with writer:
         for sim in tqdm(simulations, desc="writing", unit="sim", disable=not progress):
             writer.add(sim)

@@ -24,6 +24,7 @@ import re
 from typing import Any
 
 from thrombojax.errors import ConfigError
+from thrombojax.train.checks import check_train_values
 
 __all__ = ["TrainConfig", "parse_angle", "load_config_file"]
 
@@ -80,6 +81,7 @@ class TrainConfig:
     checkpoint_every: int = 0
 
     def __post_init__(self) -> None:
+        check_train_values(self)  # types, finiteness, ranges of every field
         if self.epochs < 1:
             raise ConfigError(f"epochs must be >= 1, got {self.epochs}")
         if self.batch_size is not None and self.batch_size < 1:
@@ -139,7 +141,8 @@ def parse_angle(text: str | float) -> float:
 
 
 def load_config_file(path: str | pathlib.Path) -> TrainConfig:
-    """Read a JSON training config (keys of :class:`TrainConfig`)."""
+    """Read a JSON training config (keys of :class:`TrainConfig`), or a run's ``config.json``
+    (its ``train`` object: ``--config RUN/config.json`` reproduces that run)."""
     path = pathlib.Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"{path}: training config file not found")
@@ -149,6 +152,8 @@ def load_config_file(path: str | pathlib.Path) -> TrainConfig:
         raise ConfigError(f"{path}: not valid JSON: {err}") from err
     if not isinstance(data, dict):
         raise ConfigError(f"{path}: a training config must be a JSON object")
+    if isinstance(data.get("train"), dict) and "model_config" in data:
+        data = data["train"]
     try:
         return TrainConfig.from_dict(data)
     except ConfigError as err:

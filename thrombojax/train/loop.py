@@ -35,8 +35,16 @@ from thrombojax.data.batching import (
     make_batch,
     padding_budget,
 )
-from thrombojax.errors import CapacityOverflowError, ConfigError, ThrombojaxError
+from thrombojax.errors import CapacityOverflowError, ConfigError, OutputError, ThrombojaxError
 from thrombojax.train.config import TrainConfig, load_config_file
+from thrombojax.train.guards import (
+    NonFiniteError,
+    check_finite,
+    check_resume_dataset,
+    clear_run,
+    dataset_fingerprint,
+    warn_schedule,
+)
 from thrombojax.train.schedule import make_optimizer, make_schedule
 from thrombojax.train.state import (
     TrainedModel,
@@ -85,6 +93,7 @@ def train(
     progress: bool = True,
     callback: Callable[[int, dict], None] | None = None,
     distributed: bool = False,
+    force: bool = False,
     **overrides: Any,
 ) -> TrainedModel:
     """Train a surrogate on a dataset and write a run directory.
@@ -101,6 +110,7 @@ def train(
             any checkpoint of that step is on disk.
         distributed: call ``jax.distributed.initialize()`` first (multi-host; see
             :mod:`thrombojax.train.step`).
+        force: start afresh in an ``out_dir`` that holds a run (its files are removed).
         **overrides: :class:`TrainConfig` fields.
     Returns:
         The best :class:`TrainedModel` (lowest validation MSE).
@@ -115,6 +125,7 @@ def train(
     out_dir = pathlib.Path(out_dir)
     model_name = canonical_name(model_name)
     cfg = _resolve(config, overrides)
+    saved = None
     if resume:
         saved = read_run_config(out_dir)
         saved_cfg = TrainConfig.from_dict(saved["train"])
@@ -128,13 +139,19 @@ def train(
         # killed before its first checkpoint: nothing to continue, start the same run afresh
         resume = latest_step(out_dir / "checkpoints" / "last") is not None
     elif latest_step(out_dir / "checkpoints" / "last") is not None:
-        raise FileExistsError(
-            f"{out_dir}: already holds a training run; use --resume or a new --out"
-        )
+        if not force:
+            raise OutputError(f"{out_dir}: already holds a training run; use --resume, a new "
+                              "--out, or --force to replace it")
+        clear_run(out_dir)
+    warn_schedule(cfg.epochs, cfg.warmup_epochs)
     out_dir.mkdir(parents=True, exist_ok=True)
 
     ds = open_dataset(dataset_path)
+    ds.validate()  # the values `thrombojax info` checks, before any training
     scaling = fit_scaling(ds)
+    fingerprint = dataset_fingerprint(ds)
+    if saved is not None:
+        check_resume_dataset(saved, fingerprint, scaling.to_dict(), dataset_path, out_dir)
     split = split_simulations(list(ds.names), n_test=cfg.n_test, n_val=cfg.n_val,
                               seed=cfg.split_seed)
     train_store = load_store(ds, split.train, scaling, skip=cfg.skip_frames)
@@ -166,6 +183,7 @@ def train(
     run_config = {
         "model": model_name, "model_config": config_to_dict(model_cfg), "train": cfg.to_dict(),
         "dataset": str(pathlib.Path(dataset_path).resolve()), "stats": stats.to_dict(),
+        "dataset_fingerprint": fingerprint,
         "scaling": scaling.to_dict(), "batch_size": batch_size, "lr": lr, "budget": budget,
         "steps_per_epoch": steps_per_epoch, "total_steps": total_steps, "devices": mesh.size,
         "split": {"train": list(split.train), "val": list(split.val), "test": list(split.test)},
@@ -229,6 +247,11 @@ def train(
                 record = _end_epoch(epoch, step + 1, acc, val_batches, eval_step, state, mesh,
                                     float(schedule(step)), time.perf_counter() - t0)
                 _log(out_dir, record)
+                try:  # never save a checkpoint whose metrics are NaN / infinite
+                    check_finite(record, f"{out_dir}: epoch {epoch + 1}")
+                except NonFiniteError as err:
+                    raise TrainingDivergedError(f"{err}; not saved, the last good checkpoint is "
+                                                f"kept in {ckpt / 'last'}") from err
                 score = record.get("val_mse", record["train_mse"])
                 acc = np.zeros(3)
                 if score < best:

@@ -174,7 +174,15 @@ def read_run_config(run_dir: str | pathlib.Path) -> dict:
     path = pathlib.Path(run_dir) / "config.json"
     if not path.is_file():
         raise FileNotFoundError(f"{path}: not a thrombojax run directory (no config.json)")
-    return json.loads(path.read_text())
+    try:
+        config = json.loads(path.read_text())
+    except (json.JSONDecodeError, UnicodeDecodeError) as err:
+        raise ConfigError(f"{path}: corrupt run config (not valid JSON: {err})") from err
+    missing = [k for k in ("model", "model_config", "train", "stats", "scaling")
+               if not isinstance(config, dict) or k not in config]
+    if missing:
+        raise ConfigError(f"{path}: corrupt or foreign run config, missing {missing}")
+    return config
 
 
 def _json_default(value: Any) -> Any:
@@ -204,12 +212,58 @@ def load_trained(run_dir: str | pathlib.Path, *, which: str = "best") -> Trained
     ckpt = run_dir / "checkpoints" / which
     if latest_step(ckpt) is None:
         raise ConfigError(f"{run_dir}: no '{which}' checkpoint in {ckpt}")
-    params, _, _ = restore_checkpoint(ckpt)
-    model = create_model(config["model"], config_from_dict(config["model"], config["model_config"]))
-    return TrainedModel(
-        model=model,
-        params=params,
-        stats=TargetStats.from_dict(config["stats"]),
-        scaling=Scaling.from_dict(config["scaling"]),
-        config=config,
-    )
+    try:
+        params, _, meta = restore_checkpoint(ckpt)
+    except ConfigError:
+        raise
+    except Exception as err:  # orbax / tensorstore errors on truncated or bit-flipped files
+        first = " ".join(str(err).split())[:200]
+        raise ConfigError(f"{ckpt}: checkpoint cannot be read (corrupt or incomplete run "
+                          f"folder): {type(err).__name__}: {first}") from err
+    if isinstance(meta, dict) and meta.get("model", config["model"]) != config["model"]:
+        raise ConfigError(f"{run_dir}: config.json is for model '{config['model']}' but the "
+                          f"'{which}' checkpoint is a '{meta.get('model')}' run")
+    leaves = jax.tree.leaves(params)
+    if not all(bool(jnp.isfinite(x).all()) for x in leaves):
+        raise ConfigError(f"{ckpt}: checkpoint holds NaN or infinite weights; not usable")
+    try:
+        model = create_model(config["model"],
+                             config_from_dict(config["model"], config["model_config"]))
+        trained = TrainedModel(
+            model=model, params=params, stats=TargetStats.from_dict(config["stats"]),
+            scaling=Scaling.from_dict(config["scaling"]), config=config,
+        )
+        _check_params_fit(trained)
+    except (KeyError, TypeError, ValueError) as err:
+        if isinstance(err, ConfigError):
+            raise
+        raise ConfigError(f"{run_dir / 'config.json'}: does not match the run's checkpoint "
+                          f"({type(err).__name__}: {err})") from err
+    return trained
+
+
+def _check_params_fit(trained: TrainedModel) -> None:
+    """The checkpoint's parameter tree must be the one the config's model creates."""
+    import numpy as _np
+
+    from thrombojax.types import NodeType
+
+    n = 8
+    pos = _np.zeros((n, 3), _np.float32) + _np.linspace(0, 0.1, n)[:, None]
+    node_type = _np.full(n, NodeType.CLOT, _np.int32)
+    try:
+        from thrombojax.rollout import make_input
+
+        inputs = make_input(jnp.asarray(pos), jnp.asarray(pos), jnp.asarray(node_type),
+                            jnp.ones(n, bool))
+        want = jax.eval_shape(lambda: trained.model.init(
+            jax.random.key(0), inputs, trained.model.build_graph(inputs)))
+    except Exception:  # a model whose init needs more than this: skip the check
+        return
+    def shapes(tree) -> dict:
+        flat = jax.tree_util.tree_flatten_with_path(tree)[0]
+        return {jax.tree_util.keystr(k): tuple(v.shape) for k, v in flat}
+
+    if shapes(trained.params) != shapes(want):
+        raise ConfigError("the checkpoint's weights do not fit the model in config.json (a "
+                          "config.json from another run or model?)")
