@@ -414,9 +414,18 @@ def _run_bench(args) -> int:
 _REGISTRARS += [_add_evaluate, _add_rollout, _add_export, _add_bench]
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse with one-line errors: ``thrombojax generate: error: argument --sims: ...``."""
+
+    def error(self, message: str):
+        print(f"{self.prog}: error: {' '.join(message.split())} (see '{self.prog} --help')",
+              file=sys.stderr)
+        raise SystemExit(2)
+
+
 def build_parser() -> argparse.ArgumentParser:
     """Build the argument parser with every working subcommand."""
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="thrombojax",
         description=(
             "Learned step-by-step surrogates of mechanical-thrombectomy simulations: "
