@@ -233,7 +233,7 @@ def load_trained(run_dir: str | pathlib.Path, *, which: str = "best") -> Trained
             model=model, params=params, stats=TargetStats.from_dict(config["stats"]),
             scaling=Scaling.from_dict(config["scaling"]), config=config,
         )
-        _check_params_fit(trained)
+        _check_params_fit(trained, run_dir / "config.json", ckpt)
     except (KeyError, TypeError, ValueError) as err:
         if isinstance(err, ConfigError):
             raise
@@ -242,7 +242,7 @@ def load_trained(run_dir: str | pathlib.Path, *, which: str = "best") -> Trained
     return trained
 
 
-def _check_params_fit(trained: TrainedModel) -> None:
+def _check_params_fit(trained: TrainedModel, config_path: pathlib.Path, ckpt: pathlib.Path) -> None:
     """The checkpoint's parameter tree must be the one the config's model creates."""
     import numpy as _np
 
@@ -265,5 +265,5 @@ def _check_params_fit(trained: TrainedModel) -> None:
         return {jax.tree_util.keystr(k): tuple(v.shape) for k, v in flat}
 
     if shapes(trained.params) != shapes(want):
-        raise ConfigError("the checkpoint's weights do not fit the model in config.json (a "
-                          "config.json from another run or model?)")
+        raise ConfigError(f"{ckpt}: the checkpoint's weights do not fit the model described by "
+                          f"{config_path} (a config.json from another run or model?)")
