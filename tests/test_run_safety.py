@@ -267,3 +267,14 @@ def test_rollout_dotted_names_do_not_overwrite_each_other(tiny_run):
     assert names == ["flow_1.5_prediction.xdmf", "flow_1.5_truth.xdmf",
                      "flow_2.5_prediction.xdmf", "flow_2.5_truth.xdmf"]
     assert len(open_dataset(out / "flow_1.5_rollout.h5").names) == 1
+
+
+@pytest.mark.parametrize("preset", ["bendvessel-tiny", "clotentry-tiny"])
+def test_tiny_presets_fit_the_default_split(preset):
+    from thrombojax.data.splits import split_simulations
+    from thrombojax.sim.presets import get_preset
+
+    cfg = TrainConfig()
+    names = [f"{preset}_{i:03d}" for i in range(get_preset(preset).n_sims)]
+    split = split_simulations(names, n_test=cfg.n_test, n_val=cfg.n_val, seed=cfg.split_seed)
+    assert split.train and len(split.val) == cfg.n_val and len(split.test) == cfg.n_test

@@ -35,7 +35,9 @@ from tqdm.auto import tqdm
 
 from thrombojax.errors import ConfigError
 from thrombojax.evaluate import default_skip, markdown_table
+from thrombojax.io.outputs import atomic_write_text, check_targets
 from thrombojax.rollout import rollout_jit, select_subset
+from thrombojax.train.guards import warn_large_cpu_cases
 from thrombojax.types import NodeType
 
 __all__ = [
@@ -202,6 +204,7 @@ def bench(
     out_dir: str | pathlib.Path | None = None,
     seed: int = 0,
     progress: bool = True,
+    force: bool = False,
 ) -> dict:
     """Time rollouts of each model at each case size and compare with the solvers.
 
@@ -217,14 +220,20 @@ def bench(
         measure_solver: presets to run once now to measure our solver's time.
         out_dir: write ``bench.json`` and ``bench.md`` there. seed: init / subset seed.
         progress: show a progress bar.
+        force: replace an existing ``bench.json`` / ``bench.md`` (checked before timing).
     Returns:
-        JSON-ready ``{"environment", "note", "results": [...]}``.
+        JSON-ready ``{"environment", "note", "results": [...]}`` (plus ``"files"`` when
+        ``out_dir`` is given).
     """
     from thrombojax.models.registry import create_model, get_config
 
     unknown = [c for c in cases if c not in STUDY_CASES]
     if unknown:
         raise ConfigError(f"unknown bench case(s) {unknown}; known: {list(STUDY_CASES)}")
+    if out_dir is not None:
+        check_targets([pathlib.Path(out_dir) / "bench.json", pathlib.Path(out_dir) / "bench.md"],
+                      force=force, what="benchmark result")
+    warn_large_cpu_cases(cases, n_nodes, STUDY_CASES)
     runs = dict(runs or {})
     ds = None
     if dataset is not None:
@@ -271,9 +280,9 @@ def bench(
         "x200/160 scaling); speed-ups compare it with the solver's time per simulation.")}
     if out_dir is not None:
         out_dir = pathlib.Path(out_dir)
-        out_dir.mkdir(parents=True, exist_ok=True)
-        (out_dir / "bench.json").write_text(json.dumps(out, indent=2))
-        (out_dir / "bench.md").write_text(bench_markdown(out))
+        atomic_write_text(out_dir / "bench.json", json.dumps(out, indent=2))
+        atomic_write_text(out_dir / "bench.md", bench_markdown(out))
+        out["files"] = [str(out_dir / "bench.json"), str(out_dir / "bench.md")]
     out["table"] = bench_markdown(out)
     return out
 

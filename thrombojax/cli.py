@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+import warnings
 from collections.abc import Callable, Sequence
 
 from thrombojax.cli_types import angle, float_above, float_at_least, int_at_least
@@ -406,8 +407,10 @@ def _run_bench(args) -> int:
                 n_nodes=args.nodes, max_steps=args.max_steps, repeats=args.repeats,
                 dataset=args.dataset, solver_datasets=tuple(args.solver_dataset),
                 measure_solver=tuple(args.measure_solver), out_dir=args.out,
-                progress=not args.quiet)
+                progress=not args.quiet, force=args.force)
     print(res["table"], end="")
+    for path in res.get("files", []):
+        print(f"wrote {path}")
     return 0
 
 
@@ -446,7 +449,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``thrombojax`` console script. Returns the exit status."""
     args = build_parser().parse_args(argv)
     try:
-        result = args.func(args)
+        with warnings.catch_warnings():
+            warnings.showwarning = _one_line_warning(args.command)
+            result = args.func(args)
         sys.stdout.flush()
     except BrokenPipeError:  # `thrombojax info X | head`: the reader has gone, nothing to say
         _silence_stdout()
@@ -459,6 +464,14 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"thrombojax {args.command}: interrupted", file=sys.stderr)
         return 130
     return int(result or 0)
+
+
+def _one_line_warning(command: str):
+    """Print warnings as ``thrombojax COMMAND: warning: ...`` (one line, no source excerpt)."""
+    def show(message, category, filename, lineno, file=None, line=None):
+        print(f"thrombojax {command}: warning: {' '.join(str(message).split())}",
+              file=sys.stderr)
+    return show
 
 
 def _silence_stdout() -> None:

@@ -33,6 +33,7 @@ __all__ = [
     "NonFiniteError",
     "clear_run",
     "warn_schedule",
+    "warn_large_cpu_cases",
 ]
 
 BOX_WARN = 1.25  # |scaled coordinate| above this: warning (the run's data lies in [-1, 1])
@@ -164,3 +165,19 @@ def warn_schedule(epochs: int, warmup_epochs: float) -> None:
     if warmup_epochs >= epochs:
         warnings.warn(f"--warmup-epochs {warmup_epochs:g} >= --epochs {epochs}: the learning "
                       "rate warms up for the whole run and never reaches its peak", stacklevel=2)
+
+
+LARGE_CPU_NODES = 10_000
+
+
+def warn_large_cpu_cases(cases: Iterable[str], n_nodes: int | None, table: Mapping) -> None:
+    """Warn before timing cases of ``LARGE_CPU_NODES`` nodes or more on a CPU (minutes each)."""
+    import jax
+
+    if jax.default_backend() != "cpu":
+        return
+    big = [c for c in cases if c in table and (n_nodes or table[c].n_nodes) >= LARGE_CPU_NODES]
+    if big:
+        warnings.warn(f"bench: timing {big} ({n_nodes or table[big[0]].n_nodes:,} nodes) on a "
+                      "CPU takes minutes per model; pass --cases bendvessel,clotentry or "
+                      "--nodes to skip or shrink them", stacklevel=2)
