@@ -240,6 +240,7 @@ def bench(
         from thrombojax.io.hdf5 import open_dataset
 
         ds = open_dataset(dataset)
+        ds.validate()  # the values `thrombojax info` checks
     solver = _solver_times(list(solver_datasets), list(measure_solver))
     results, inits = [], {}
     jobs = [(m, c) for m in models for c in cases]

@@ -23,7 +23,6 @@ import contextlib
 import datetime
 import json
 import os
-import uuid
 from collections.abc import Iterable, Iterator, Mapping
 from pathlib import Path
 from typing import Any
@@ -33,12 +32,13 @@ import numpy as np
 from tqdm import tqdm
 
 from thrombojax.errors import DatasetError
-from thrombojax.io.outputs import TEMP_TAG, check_target, clean_temporaries
+from thrombojax.io.outputs import check_target, temp_path
 from thrombojax.io.schema import (
     KNOWN_NODE_TYPES,
     VESSEL_TOLERANCE,
     Simulation,
     check_positions_shape,
+    check_stored_size,
     decode_attrs,
     encode_attrs,
     natural_key,
@@ -77,8 +77,8 @@ class DatasetWriter:
         source: solver name or import origin (file attribute).
         units: unit of the positions (file attribute).
         generator_config: JSON-serialisable preset of the generator, when generated.
-        overwrite: replace an existing file at ``path`` (else OutputError, a FileExistsError).
-        inputs: the files this dataset is made from; ``path`` may never be one of them.
+        overwrite, inputs: replace an existing file at ``path`` (else OutputError); ``path`` is
+            never one of ``inputs``, the files the dataset is made from.
         vessel_tol: relative tolerance of the vessel-rigidity check.
     """
 
@@ -106,8 +106,7 @@ class DatasetWriter:
             self._file_attrs["generator_config"] = to_json(generator_config)
         except (TypeError, ValueError) as err:
             raise simulation_error(self.path, None, "generator_config", str(err)) from err
-        self._overwrite = overwrite
-        self._inputs = tuple(inputs)
+        self._overwrite, self._inputs = overwrite, tuple(inputs)
         self._vessel_tol = vessel_tol
         self._tmp: Path | None = None
         self._h5: h5py.File | None = None
@@ -119,9 +118,7 @@ class DatasetWriter:
     def __enter__(self) -> DatasetWriter:
         self._check_target()
         self.path.parent.mkdir(parents=True, exist_ok=True)
-        clean_temporaries(self.path.parent)
-        self._tmp = self.path.with_name(
-            f".{self.path.name}{TEMP_TAG}{os.getpid()}-{uuid.uuid4().hex[:8]}.tmp")
+        self._tmp = temp_path(self.path, ".tmp")  # also removes dead processes' temporaries
         self._h5 = h5py.File(self._tmp, "w")
         created = datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds")
         self._h5.attrs.update({**self._file_attrs, "created": created})
@@ -186,8 +183,7 @@ def write_dataset(
     source: str,
     units: str = "vessel radius",
     generator_config: dict | None = None,
-    overwrite: bool = True,
-    inputs: Iterable[str | os.PathLike] = (),
+    overwrite: bool = True, inputs: Iterable[str | os.PathLike] = (),
     progress: bool = False,
 ) -> Path:
     """Write simulations (any iterable, consumed one at a time) to ``path`` atomically.
@@ -279,7 +275,7 @@ class Dataset(Mapping[str, Simulation]):
                 raise fail(key, "missing")
             if obj is not None and not isinstance(obj, h5py.Dataset):
                 raise fail(key, "is not an array")
-            return obj
+            return obj if obj is None else check_stored_size(obj, key, fail)  # no 6 GB reads
 
         pos = field("positions")
         if pos.dtype != np.float32:

@@ -39,6 +39,7 @@ __all__ = [
     "atomic_write_text",
     "clean_temporaries",
     "input_files",
+    "temp_path",
 ]
 
 TEMP_TAG = ".tjxtmp-"
@@ -193,6 +194,17 @@ def clean_temporaries(folder: str | os.PathLike) -> list[Path]:
     return removed
 
 
+def temp_path(target: str | os.PathLike, suffix: str | None = None) -> Path:
+    """A fresh temporary name beside ``target`` (hidden, tagged with this process's id, ending
+    in ``suffix``, default the target's suffix); stale temporaries of dead processes in that
+    folder are removed first."""
+    target = Path(target)
+    clean_temporaries(target.parent)
+    suffix = target.suffix if suffix is None else suffix
+    return target.with_name(f".{target.name}{TEMP_TAG}{os.getpid()}-{uuid.uuid4().hex[:8]}"
+                            f"{suffix}")
+
+
 @contextlib.contextmanager
 def atomic_path(target: str | os.PathLike) -> Iterator[Path]:
     """Yield a temporary path beside ``target``; rename it onto ``target`` on a clean exit.
@@ -204,9 +216,7 @@ def atomic_path(target: str | os.PathLike) -> Iterator[Path]:
     """
     target = Path(target)
     target.parent.mkdir(parents=True, exist_ok=True)
-    clean_temporaries(target.parent)
-    tmp = target.with_name(f".{target.name}{TEMP_TAG}{os.getpid()}-{uuid.uuid4().hex[:8]}"
-                           f"{target.suffix}")
+    tmp = temp_path(target)
     try:
         yield tmp
         if not tmp.exists():
