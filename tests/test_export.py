@@ -34,7 +34,7 @@ def test_xdmf_series_has_moving_geometry_and_node_types(tmp_path):
     names = {a.get("Name") for a in grids[0].findall("Attribute")}
     assert names == {"node_type", "displacement", "error"}
     assert grids[1].find("Topology").get("NumberOfElements") == "3"  # 1 tet + 2 vertex cells
-    with h5py.File(tmp_path / "run.h5") as f:
+    with h5py.File(tmp_path / "run.xdmf.h5") as f:
         ref = grids[2].find("Geometry/DataItem").text.split(":")[1]
         np.testing.assert_array_equal(f[ref][()], pos[2])
         np.testing.assert_array_equal(f["static/node_type"][()], node_type)

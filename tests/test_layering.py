@@ -22,7 +22,8 @@ LAYERS: dict[str, int] = {
     "simulator": 4,
     "train": 5,
     "eval": 6,
-    "cli": 7, "__main__": 8,
+    "cli_types": 7,
+    "cli": 8, "__main__": 9,
 }  # fmt: skip
 
 

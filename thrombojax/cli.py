@@ -8,8 +8,10 @@ from __future__ import annotations
 
 import argparse
 import sys
+import warnings
 from collections.abc import Callable, Sequence
 
+from thrombojax.cli_types import angle, float_above, float_at_least, int_at_least
 from thrombojax.errors import ThrombojaxError
 
 __all__ = ["main", "build_parser"]
@@ -19,6 +21,16 @@ _Registrar = Callable[["argparse._SubParsersAction"], None]
 # ---- subcommands: each `_add_<name>` registers one parser and sets `func` ------------------
 
 _REGISTRARS: list[_Registrar] = []
+
+# argument types: numbers are checked (finite, in range) when the flags are parsed
+_NN_INT, _POS_INT = int_at_least(0), int_at_least(1)
+_NN_FLOAT, _POS_FLOAT = float_at_least(0.0), float_above(0.0)
+
+
+def _output_flags(p, force_help: str) -> None:
+    """``--force`` and ``--quiet``: the same two flags on every writing command."""
+    p.add_argument("--force", action="store_true", help=f"{force_help} (never an input file)")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
 def _add_info(sub) -> None:
@@ -49,12 +61,12 @@ def _import_common(p) -> None:
                    help="simulation name; repeat once per simulation, in order "
                         "(default: folder / file names)")
     p.add_argument("--dataset-name", metavar="NAME", help="dataset name (default: FILE's stem)")
-    p.add_argument("--dt", type=float, help="time step between stored frames, stored per sim")
-    p.add_argument("--reference-time", type=float, metavar="SECONDS",
+    p.add_argument("--dt", type=_POS_FLOAT, help="time step between stored frames, stored "
+                   "per sim")
+    p.add_argument("--reference-time", type=_POS_FLOAT, metavar="SECONDS",
                    help="recorded solver wall time per simulation (e.g. Abaqus), for speed-ups")
     p.add_argument("--units", default="vessel radius", help="unit of the coordinates")
-    p.add_argument("--force", action="store_true", help="overwrite FILE if it exists")
-    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    _output_flags(p, "overwrite FILE if it exists")
 
 
 def _add_import(sub) -> None:
@@ -152,10 +164,12 @@ def _add_generate(sub) -> None:
     )
     p.add_argument("preset", help="bendvessel | clotentry | bendvessel-tiny | clotentry-tiny")
     p.add_argument("--out", required=True, help="output .h5 file")
-    p.add_argument("--sims", type=int, default=None, help="number of simulations (default: all)")
-    p.add_argument("--seed", type=int, default=0, help="dataset seed (same seed, same arrays)")
-    p.add_argument("--plot", action="store_true", help="also write <out>.png with a few frames")
-    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.add_argument("--sims", type=_POS_INT, default=None,
+                   help="number of simulations (default: all)")
+    p.add_argument("--seed", type=_NN_INT, default=0, help="dataset seed (same seed, same arrays)")
+    p.add_argument("--plot", action="store_true", help="also write <out stem>.png with a few "
+                   "frames")
+    _output_flags(p, "replace an existing output file")
     p.set_defaults(func=_run_generate)
 
 
@@ -164,7 +178,7 @@ def _run_generate(args) -> int:
 
     out = generate_dataset(
         args.preset, args.out, n_sims=args.sims, seed=args.seed, plot=args.plot,
-        progress=not args.quiet,
+        progress=not args.quiet, force=args.force,
     )  # fmt: skip
     print(f"wrote {out}")
     return 0
@@ -196,31 +210,32 @@ def _add_train(sub) -> None:
     p.add_argument("--config", metavar="FILE", help="JSON training config (TrainConfig keys), "
                    "or a run's config.json to repeat that run")
     p.add_argument("--resume", action="store_true", help="continue the run in DIR exactly")
-    p.add_argument("--epochs", type=int, help="epochs (study: 300)")
-    p.add_argument("--batch-size", type=int, help="samples per step (study: 8 mgn/erwin, 16 "
+    p.add_argument("--epochs", type=_POS_INT, help="epochs (study: 300)")
+    p.add_argument("--batch-size", type=_POS_INT, help="samples per step (study: 8 mgn/erwin, 16 "
                    "transolver); a multiple of the number of devices")
-    p.add_argument("--lr", type=float, help="peak learning rate (study: 1e-3 mgn, 1e-4 others)")
-    p.add_argument("--warmup-epochs", type=float, help="linear warm-up epochs (study: 10)")
-    p.add_argument("--radius", type=float, help="graph radius in scaled coordinates (a model "
-                   "config field)")
-    p.add_argument("--max-rotation", help="largest random rotation, radians; also 'pi', 'pi/2', "
-                   "'0.5pi' or '90deg' (study's best: pi; 0 disables)")
-    p.add_argument("--nodes-per-sample", type=int, help="subsample N nodes per sample, clot "
+    p.add_argument("--lr", type=_POS_FLOAT,
+                   help="peak learning rate (study: 1e-3 mgn, 1e-4 others)")
+    p.add_argument("--warmup-epochs", type=_NN_FLOAT, help="linear warm-up epochs (study: 10)")
+    p.add_argument("--radius", type=_POS_FLOAT, help="graph radius in scaled coordinates (a "
+                   "model config field)")
+    p.add_argument("--max-rotation", type=angle, help="largest random rotation, radians; also "
+                   "'pi', 'pi/2', '0.5pi' or '90deg' (study's best: pi; 0 disables)")
+    p.add_argument("--nodes-per-sample", type=_POS_INT, help="subsample N nodes per sample, clot "
                    "fraction kept (study: 2048 on ClotEntry; default all nodes)")
-    p.add_argument("--bary-ratio", type=float, help="BaryCentricSampling samples per real sample "
-                   "(study's best on BendVessel: 2, i.e. real:generated 1:2; default 0)")
-    p.add_argument("--noise-std", type=float, help="training noise on s_t (default 0: off)")
-    p.add_argument("--seed", type=int, help="seed of initialisation, data order, augmentations")
-    p.add_argument("--skip-frames", type=int, help="first frames never used as frame t of a "
+    p.add_argument("--bary-ratio", type=_NN_FLOAT, help="BaryCentricSampling samples per real "
+                   "sample (study's best on BendVessel: 2, i.e. real:generated 1:2; default 0)")
+    p.add_argument("--noise-std", type=_NN_FLOAT, help="training noise on s_t (default 0: off)")
+    p.add_argument("--seed", type=_NN_INT, help="seed of initialisation, data order, augmentations")
+    p.add_argument("--skip-frames", type=_NN_INT, help="first frames never used as frame t of a "
                    "window (default 0: every window)")
-    p.add_argument("--rollout-steps", type=int, help="k of the k-step unrolled loss (default 1: "
-                   "single-step loss)")
-    p.add_argument("--n-val", type=int, help="validation simulations (default 2)")
-    p.add_argument("--n-test", type=int, help="test simulations, never trained on (default 1)")
+    p.add_argument("--rollout-steps", type=_POS_INT, help="k of the k-step unrolled loss "
+                   "(default 1: single-step loss)")
+    p.add_argument("--n-val", type=_NN_INT, help="validation simulations (default 2)")
+    p.add_argument("--n-test", type=_NN_INT, help="test simulations, never trained on (default 1)")
     p.add_argument("--tiny", action="store_true", default=None, help="tiny model config")
     p.add_argument("--distributed", action="store_true",
                    help="multi-host: call jax.distributed.initialize() first (run on every host)")
-    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    _output_flags(p, "start a new run in DIR even if it holds one (its checkpoints are removed)")
     p.set_defaults(func=_run_train)
 
 
@@ -236,9 +251,12 @@ def _run_train(args) -> int:
     if args.radius is not None:
         base = config.train if isinstance(config, RunConfig) else (config or TrainConfig())
         overrides["model_config"] = {**base.model_config, "radius": args.radius}
+    from thrombojax.train.summary import run_summary
+
     trained = train(args.dataset, args.model, args.out, config=config, resume=args.resume,
-                    progress=not args.quiet, distributed=args.distributed, **overrides)
-    print(f"trained {trained.model.name}: best checkpoint in {args.out}/checkpoints/best")
+                    progress=not args.quiet, distributed=args.distributed, force=args.force,
+                    **overrides)
+    print(run_summary(args.out, trained.model.name))
     return 0
 
 
@@ -263,10 +281,11 @@ def _add_evaluate(sub) -> None:
     p.add_argument("--out", metavar="DIR", help="output folder (default: the run directory)")
     p.add_argument("--split", default="test", choices=("train", "val", "test", "all"))
     p.add_argument("--checkpoint", default="best", choices=("best", "last"))
-    p.add_argument("--skip", type=int, default=0, help="skip windows whose middle frame < SKIP")
-    p.add_argument("--nodes", type=int, help="fixed seeded node subset (default: the run's "
-                   "nodes_per_sample, else all nodes)")
-    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.add_argument("--skip", type=_NN_INT, default=0,
+                   help="skip windows whose middle frame < SKIP")
+    p.add_argument("--nodes", type=_POS_INT, help="fixed seeded node subset (default: the "
+                   "run's nodes_per_sample, else all nodes)")
+    _output_flags(p, "replace existing evaluate.json / evaluate.md")
     p.set_defaults(func=_run_evaluate)
 
 
@@ -275,7 +294,7 @@ def _run_evaluate(args) -> int:
 
     res = evaluate_run(args.run, args.dataset, out_dir=args.out, split=args.split,
                        which=args.checkpoint, skip=args.skip, n_nodes=args.nodes,
-                       progress=not args.quiet)
+                       progress=not args.quiet, force=args.force)
     print(res["table"], end="")
     print(f"wrote {args.out or args.run}/evaluate.json and evaluate.md")
     return 0
@@ -302,14 +321,15 @@ def _add_rollout(sub) -> None:
                    help="simulation to roll out (repeatable; default: the run's test split)")
     p.add_argument("--split", default="test", choices=("train", "val", "test", "all"))
     p.add_argument("--checkpoint", default="best", choices=("best", "last"))
-    p.add_argument("--skip", type=int, help="skipped frames (default: the dataset's "
+    p.add_argument("--skip", type=_NN_INT, help="skipped frames (default: the dataset's "
                    "skip_frames attribute)")
-    p.add_argument("--steps", type=int, help="rollout steps (default: to the last frame)")
-    p.add_argument("--nodes", type=int, help="fixed seeded node subset (the study: 2048 on "
+    p.add_argument("--steps", type=_POS_INT, help="rollout steps (default: to the last frame)")
+    p.add_argument("--nodes", type=_POS_INT, help="fixed seeded node subset (the study: 2048 on "
                    "ClotEntry; default: the run's nodes_per_sample, else all nodes)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the node subset")
+    p.add_argument("--seed", type=_NN_INT, default=0, help="seed of the node subset")
     p.add_argument("--format", default="xdmf", choices=("xdmf", "vtu"), help="ParaView format")
     p.add_argument("--no-gif", action="store_true", help="skip the animation")
+    _output_flags(p, "replace existing rollout files in DIR")
     p.set_defaults(func=_run_rollout)
 
 
@@ -319,7 +339,7 @@ def _run_rollout(args) -> int:
     res = rollout_run(args.run, args.dataset, args.out, simulations=args.sim, split=args.split,
                       which=args.checkpoint, skip=args.skip, n_steps=args.steps,
                       n_nodes=args.nodes, seed=args.seed, format=args.format,
-                      gif=not args.no_gif)
+                      gif=not args.no_gif, force=args.force, progress=not args.quiet)
     print(res["table"], end="")
     print(f"wrote rollouts to {args.out}/")
     return 0
@@ -340,13 +360,15 @@ def _add_export(sub) -> None:
     p.add_argument("--sim", action="append", metavar="NAME",
                    help="simulation to export (repeatable; default: all)")
     p.add_argument("--format", default="xdmf", choices=("xdmf", "vtu"))
+    _output_flags(p, "replace existing exported series")
     p.set_defaults(func=_run_export)
 
 
 def _run_export(args) -> int:
     from thrombojax.io.export import export_file
 
-    for path in export_file(args.file, args.out, names=args.sim, format=args.format):
+    for path in export_file(args.file, args.out, names=args.sim, format=args.format,
+                            force=args.force, progress=not args.quiet):
         print(f"wrote {path}")
     return 0
 
@@ -370,16 +392,17 @@ def _add_bench(sub) -> None:
     p.add_argument("--run", action="append", metavar="MODEL=DIR", default=[],
                    help="time a trained run for MODEL (repeatable)")
     p.add_argument("--tiny", action="store_true", help="tiny configs instead of the study's")
-    p.add_argument("--nodes", type=int, help="override every case's node count")
-    p.add_argument("--max-steps", type=int, help="time at most this many steps; extrapolate")
-    p.add_argument("--repeats", type=int, default=3, help="steady-state repetitions (median)")
+    p.add_argument("--nodes", type=_POS_INT, help="override every case's node count")
+    p.add_argument("--max-steps", type=_POS_INT,
+                   help="time at most this many steps; extrapolate")
+    p.add_argument("--repeats", type=_POS_INT, default=3, help="steady-state repetitions (median)")
     p.add_argument("--dataset", metavar="FILE", help="take positions from this dataset")
     p.add_argument("--solver-dataset", action="append", default=[], metavar="FILE",
                    help="dataset whose solver_wall_time_s is our solver's time (repeatable)")
     p.add_argument("--measure-solver", action="append", default=[], metavar="PRESET",
                    help="run this solver preset once now to time our solver (repeatable)")
     p.add_argument("--out", metavar="DIR", help="write bench.json and bench.md here")
-    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    _output_flags(p, "replace existing bench.json / bench.md")
     p.set_defaults(func=_run_bench)
 
 
@@ -398,17 +421,28 @@ def _run_bench(args) -> int:
                 n_nodes=args.nodes, max_steps=args.max_steps, repeats=args.repeats,
                 dataset=args.dataset, solver_datasets=tuple(args.solver_dataset),
                 measure_solver=tuple(args.measure_solver), out_dir=args.out,
-                progress=not args.quiet)
+                progress=not args.quiet, force=args.force)
     print(res["table"], end="")
+    for path in res.get("files", []):
+        print(f"wrote {path}")
     return 0
 
 
 _REGISTRARS += [_add_evaluate, _add_rollout, _add_export, _add_bench]
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse with one-line errors: ``thrombojax generate: error: argument --sims: ...``."""
+
+    def error(self, message: str):
+        print(f"{self.prog}: error: {' '.join(message.split())} (see '{self.prog} --help')",
+              file=sys.stderr)
+        raise SystemExit(2)
+
+
 def build_parser() -> argparse.ArgumentParser:
     """Build the argument parser with every working subcommand."""
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="thrombojax",
         description=(
             "Learned step-by-step surrogates of mechanical-thrombectomy simulations: "
@@ -416,6 +450,9 @@ def build_parser() -> argparse.ArgumentParser:
             "roll them out and benchmark them."
         ),
     )
+    from thrombojax import __version__
+
+    parser.add_argument("--version", action="version", version=f"thrombojax {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     for register in _REGISTRARS:
         register(sub)
@@ -426,14 +463,40 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``thrombojax`` console script. Returns the exit status."""
     args = build_parser().parse_args(argv)
     try:
-        result = args.func(args)
-    except (ThrombojaxError, FileNotFoundError, FileExistsError, IsADirectoryError) as err:
-        print(f"thrombojax {args.command}: error: {err}", file=sys.stderr)
+        with warnings.catch_warnings():
+            warnings.showwarning = _one_line_warning(args.command)
+            result = args.func(args)
+        sys.stdout.flush()
+    except BrokenPipeError:  # `thrombojax info X | head`: the reader has gone, nothing to say
+        _silence_stdout()
+        return 0
+    except (ThrombojaxError, OSError) as err:  # OSError: missing, unreadable, read-only paths
+        text = " ".join(str(err).split())
+        print(f"thrombojax {args.command}: error: {text}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print(f"thrombojax {args.command}: interrupted", file=sys.stderr)
         return 130
     return int(result or 0)
+
+
+def _one_line_warning(command: str):
+    """Print warnings as ``thrombojax COMMAND: warning: ...`` (one line, no source excerpt)."""
+    def show(message, category, filename, lineno, file=None, line=None):
+        print(f"thrombojax {command}: warning: {' '.join(str(message).split())}",
+              file=sys.stderr)
+    return show
+
+
+def _silence_stdout() -> None:
+    """Point stdout at /dev/null so the interpreter's final flush raises no second error."""
+    import os
+
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+    except (OSError, ValueError, AttributeError):
+        pass
 
 
 if __name__ == "__main__":

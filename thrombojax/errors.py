@@ -1,6 +1,8 @@
 """Exceptions raised by thrombojax. The CLI turns these into one-line messages and exit code 2."""
 
-__all__ = ["ThrombojaxError", "DatasetError", "CapacityOverflowError", "ConfigError"]
+__all__ = [
+    "ThrombojaxError", "DatasetError", "CapacityOverflowError", "ConfigError", "OutputError",
+]
 
 
 class ThrombojaxError(Exception):
@@ -20,3 +22,7 @@ class CapacityOverflowError(ThrombojaxError, RuntimeError):
 
 class ConfigError(ThrombojaxError, ValueError):
     """An unknown model, preset or option, or an inconsistent configuration."""
+
+
+class OutputError(ThrombojaxError, FileExistsError):
+    """An output would overwrite an input, or an existing output without ``--force``."""

@@ -68,7 +68,7 @@ def split_simulations(
     if n_test + n_val >= len(ordered):
         raise ConfigError(
             f"split: {len(ordered)} simulations cannot give {n_test} test + {n_val} validation "
-            "and still leave one to train on"
+            "and still leave one to train on; lower --n-val / --n-test or add simulations"
         )
     perm = np.random.default_rng(seed).permutation(len(ordered))
     picked = [ordered[i] for i in perm]

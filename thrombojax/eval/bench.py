@@ -36,11 +36,13 @@ from thrombojax.errors import ConfigError
 from thrombojax.eval.single_step import scaled_simulation
 from thrombojax.eval.tables import environment, markdown_table
 from thrombojax.io.hdf5 import open_dataset
+from thrombojax.io.outputs import atomic_write_text, check_targets
 from thrombojax.models.registry import Surrogate, create_model, get_config, identity_stats
 from thrombojax.sim.generate import simulate
 from thrombojax.sim.presets import get_preset
 from thrombojax.simulator.rollout import as_step, rollout_jit
 from thrombojax.simulator.step import make_step
+from thrombojax.train.guards import warn_large_cpu_cases
 from thrombojax.train.state import load_trained
 from thrombojax.types import NodeType, TargetStats
 
@@ -195,6 +197,7 @@ def bench(
     out_dir: str | pathlib.Path | None = None,
     seed: int = 0,
     progress: bool = True,
+    force: bool = False,
 ) -> dict:
     """Time rollouts of each model at each case size and compare with the solvers.
 
@@ -210,16 +213,23 @@ def bench(
         measure_solver: presets to run once now to measure our solver's time.
         out_dir: write ``bench.json`` and ``bench.md`` there. seed: init / subset seed.
         progress: show a progress bar.
+        force: replace an existing ``bench.json`` / ``bench.md`` (checked before timing).
     Returns:
-        JSON-ready ``{"environment", "note", "results": [...]}``.
+        JSON-ready ``{"environment", "note", "results": [...]}`` (plus ``"files"`` when
+        ``out_dir`` is given).
     """
     unknown = [c for c in cases if c not in STUDY_CASES]
     if unknown:
         raise ConfigError(f"unknown bench case(s) {unknown}; known: {list(STUDY_CASES)}")
+    if out_dir is not None:
+        check_targets([pathlib.Path(out_dir) / "bench.json", pathlib.Path(out_dir) / "bench.md"],
+                      force=force, what="benchmark result")
+    warn_large_cpu_cases(cases, n_nodes, STUDY_CASES)
     runs = dict(runs or {})
     ds = None
     if dataset is not None:
         ds = open_dataset(dataset)
+        ds.validate()  # the values `thrombojax info` checks
     solver = _solver_times(list(solver_datasets), list(measure_solver))
     results, inits = [], {}
     jobs = [(m, c) for m in models for c in cases]
@@ -259,9 +269,9 @@ def bench(
         "x200/160 scaling); speed-ups compare it with the solver's time per simulation.")}
     if out_dir is not None:
         out_dir = pathlib.Path(out_dir)
-        out_dir.mkdir(parents=True, exist_ok=True)
-        (out_dir / "bench.json").write_text(json.dumps(out, indent=2))
-        (out_dir / "bench.md").write_text(bench_markdown(out))
+        atomic_write_text(out_dir / "bench.json", json.dumps(out, indent=2))
+        atomic_write_text(out_dir / "bench.md", bench_markdown(out))
+        out["files"] = [str(out_dir / "bench.json"), str(out_dir / "bench.md")]
     out["table"] = bench_markdown(out)
     return out
 

@@ -5,12 +5,16 @@ For each chosen simulation, into ``out_dir``:
 - ``<sim>_rollout.h5``: the predicted trajectory in the dataset schema (physical units; frames
   s_{t0-1}, s_{t0}, then the predictions), so every dataset tool (``thrombojax info``,
   ``thrombojax export``) reads it;
-- ``<sim>_prediction.xdmf`` / ``<sim>_truth.xdmf`` (+ ``.h5``): ParaView time series with
+- ``<sim>_prediction.xdmf`` / ``<sim>_truth.xdmf`` (+ ``.xdmf.h5``): ParaView time series with
   ``node_type`` and the per-node ``error`` (distance to the truth) as point data;
 - ``<sim>_rollout.gif``: prediction beside ground truth, equal axes;
 - ``<sim>_error.png`` (MSE per step) and ``<sim>_metrics.png`` (MSE, centroid error, fraction
   outside the vessel), always with the constant-velocity baseline;
 - ``rollout.json`` (all metrics and curves) and ``rollout.md`` (horizon table).
+
+``<sim>`` is :func:`thrombojax.io.outputs.safe_stems` of the simulation name. Every file is
+written atomically; existing files are replaced only with ``force=True`` (all targets are
+checked before the first rollout runs).
 """
 
 from __future__ import annotations
@@ -20,19 +24,29 @@ import json
 import pathlib
 
 import numpy as np
+from tqdm.auto import tqdm
 
 from thrombojax import study
 from thrombojax.data.scaling import Scaling
-from thrombojax.errors import DatasetError
 from thrombojax.eval.plots import animate_rollout, plot_error_curves, plot_rollout_metrics
 from thrombojax.eval.rollouts import RolloutResult, rollout_simulation
 from thrombojax.eval.single_step import scaled_simulation, split_names
 from thrombojax.eval.tables import markdown_table
 from thrombojax.io.export import export_trajectory
 from thrombojax.io.hdf5 import Simulation, open_dataset, write_dataset
+from thrombojax.io.outputs import atomic_path, atomic_write_text, check_targets, safe_stems
+from thrombojax.train.guards import check_finite, check_in_box, check_split_names
 from thrombojax.train.state import load_trained
 
-__all__ = ["subset_cells", "save_rollout", "rollout_run"]
+__all__ = ["subset_cells", "rollout_files", "save_rollout", "rollout_run"]
+
+
+def rollout_files(out_dir: pathlib.Path, stem: str, format: str, gif: bool) -> list[pathlib.Path]:
+    """Every path :func:`save_rollout` writes for one simulation file stem."""
+    series = (".xdmf", ".xdmf.h5") if format == "xdmf" else (".pvd", "")
+    names = [f"{stem}_rollout.h5", f"{stem}_error.png", f"{stem}_metrics.png"]
+    names += [f"{stem}_{kind}{ext}" for kind in ("prediction", "truth") for ext in series]
+    return [out_dir / n for n in names + ([f"{stem}_rollout.gif"] if gif else [])]
 
 
 def subset_cells(cells: np.ndarray | None, node_index: np.ndarray, n_nodes: int):
@@ -55,8 +69,12 @@ def save_rollout(
     model_name: str,
     format: str = "xdmf",
     gif: bool = True,
+    stem: str | None = None,
 ) -> dict[str, str]:
-    """Write the files of one rollout (see the module docstring); returns label -> path."""
+    """Write the files of one rollout (see the module docstring); returns label -> path.
+
+    ``stem`` is the file-name stem (default: the simulation's safe stem); files are replaced.
+    """
     n_all = sim.positions.shape[1]
     idx = result.node_index
 
@@ -68,7 +86,7 @@ def save_rollout(
     clot_cells = subset_cells(sim.clot_cells, idx, n_all)
     wall_cells = subset_cells(sim.wall_cells, idx, n_all)
     dt = float(sim.attrs.get("dt", 1.0))
-    stem = out_dir / result.name
+    stem = out_dir / (stem or safe_stems([result.name])[result.name])
     attrs = {"dt": dt, "source_simulation": sim.name, "model": model_name, "t0": result.t0,
              "n_nodes_full": n_all, "subset": bool(idx.size < n_all)}
     for key in ("rotation_deg", "seed", "reference_wall_time_s", "solver_wall_time_s"):
@@ -77,29 +95,32 @@ def save_rollout(
     rollout_sim = Simulation(name=f"{result.name}_rollout", positions=pred,
                              node_type=result.node_type.astype(np.int8), clot_cells=clot_cells,
                              wall_cells=wall_cells, attrs=attrs)
-    files = {"trajectory": write_dataset(stem.with_name(f"{result.name}_rollout.h5"),
+    files = {"trajectory": write_dataset(stem.with_name(f"{stem.name}_rollout.h5"),
                                          [rollout_sim], name=f"{result.name} rollout",
                                          source=f"thrombojax rollout ({model_name})")}
     error = np.linalg.norm(pred - true, axis=-1)
     common = dict(clot_cells=clot_cells, wall_cells=wall_cells, dt=dt, format=format)
-    files["prediction"] = export_trajectory(stem.with_name(f"{result.name}_prediction"), pred,
+    files["prediction"] = export_trajectory(stem.with_name(f"{stem.name}_prediction"), pred,
                                             result.node_type, point_data={"error": error},
                                             **common)
-    files["truth"] = export_trajectory(stem.with_name(f"{result.name}_truth"), true,
+    files["truth"] = export_trajectory(stem.with_name(f"{stem.name}_truth"), true,
                                        result.node_type, **common)
-    files["error_png"] = plot_error_curves(
-        {label: c["mse"] for label, c in result.curves.items() if "mse" in c},
-        stem.with_name(f"{result.name}_error.png"),
-        title=f"{model_name} rollout on {result.name} from frame {result.t0}")
-    files["metrics_png"] = plot_rollout_metrics(
-        result.curves, stem.with_name(f"{result.name}_metrics.png"),
-        title=f"{model_name} rollout on {result.name} (from frame {result.t0}, "
-              f"{idx.size} nodes)")
+    with atomic_path(stem.with_name(f"{stem.name}_error.png")) as tmp:
+        plot_error_curves(
+            {label: c["mse"] for label, c in result.curves.items() if "mse" in c}, tmp,
+            title=f"{model_name} rollout on {result.name} from frame {result.t0}")
+    files["error_png"] = stem.with_name(f"{stem.name}_error.png")
+    with atomic_path(stem.with_name(f"{stem.name}_metrics.png")) as tmp:
+        plot_rollout_metrics(
+            result.curves, tmp,
+            title=f"{model_name} rollout on {result.name} (from frame {result.t0}, "
+                  f"{idx.size} nodes)")
+    files["metrics_png"] = stem.with_name(f"{stem.name}_metrics.png")
     if gif:
-        files["gif"] = animate_rollout(pred, true, result.node_type,
-                                       stem.with_name(f"{result.name}_rollout.gif"),
-                                       title=f"{model_name} / {result.name}",
-                                       first_frame=result.t0 - 1)
+        with atomic_path(stem.with_name(f"{stem.name}_rollout.gif")) as tmp:
+            animate_rollout(pred, true, result.node_type, tmp,
+                            title=f"{model_name} / {result.name}", first_frame=result.t0 - 1)
+        files["gif"] = stem.with_name(f"{stem.name}_rollout.gif")
     return {k: str(v) for k, v in files.items()}
 
 
@@ -117,6 +138,8 @@ def rollout_run(
     seed: int = 0,
     format: str = "xdmf",
     gif: bool = True,
+    force: bool = False,
+    progress: bool = False,
 ) -> dict:
     """Roll a trained run out on simulations of a dataset and write trajectories, plots, metrics.
 
@@ -131,31 +154,37 @@ def rollout_run(
         n_nodes: fixed seeded node subset size (default: the run's ``nodes_per_sample``, the
             density it was trained on, else all nodes).
         seed: subset seed. format: ``"xdmf"`` or ``"vtu"``. gif: write the animation.
+        force: replace existing files in ``out_dir`` (never the dataset or the run).
+        progress: progress bar over simulations.
     Returns:
         JSON-ready summary (also written to ``rollout.json``; table in ``rollout.md``).
     """
     trained = load_trained(run_dir, which=which)
     ds = open_dataset(dataset_path)
     names = list(simulations) if simulations else split_names(trained, ds.names, split)
-    missing = [n for n in names if n not in ds.names]
-    if missing:
-        raise DatasetError(f"{dataset_path}: no simulation(s) {missing}; have {list(ds.names)}")
-    if not names:
-        raise DatasetError(f"{dataset_path}: no simulation to roll out (the run's '{split}' "
-                           "split is empty); name one with --sim or use --split all")
+    check_split_names(names, ds.names, split if not simulations else "--sim", dataset_path,
+                      run_dir)
     skip = study.skip_frames(ds) if skip is None else int(skip)
     n_nodes = n_nodes or trained.run.train.nodes_per_sample
     out_dir = pathlib.Path(out_dir)
+    stems = safe_stems(names)
+    targets = [f for n in names for f in rollout_files(out_dir, stems[n], format, gif)]
+    check_targets([*targets, out_dir / "rollout.json", out_dir / "rollout.md"],
+                  inputs=(dataset_path,), force=force, what="rollout output")
     out_dir.mkdir(parents=True, exist_ok=True)
     report, rows = {}, []
-    for name in names:
+    for name in tqdm(names, desc=f"rollout {trained.model.name}", unit="sim",
+                     disable=not progress):
         sim = ds[name]
         pos, node_type = scaled_simulation(ds, name, trained.scaling)
+        check_in_box(pos, name, dataset_path, run_dir)
         res = rollout_simulation(trained.model, trained.params, trained.stats, pos, node_type,
                                  name=name, t0=max(skip, 1), n_steps=n_steps, n_nodes=n_nodes,
                                  seed=seed, wall_cells=sim.wall_cells)
-        files = save_rollout(res, sim, trained.scaling, out_dir,
-                             model_name=trained.model.name, format=format, gif=gif)
+        check_finite({"predicted positions": float(np.sum(res.pred))},
+                     f"{run_dir}: checkpoint '{which}' on simulation '{name}'")
+        files = save_rollout(res, sim, trained.scaling, out_dir, model_name=trained.model.name,
+                             format=format, gif=gif, stem=stems[name])
         report[name] = {"t0": res.t0, "n_steps": int(res.pred.shape[0]),
                         "n_nodes": int(res.node_index.size), "summary": res.summary,
                         "files": files, "node_index": res.node_index.tolist(),
@@ -170,10 +199,10 @@ def rollout_run(
               "skip": skip, "seed": seed,
               "date": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
               "simulations": report}
-    (out_dir / "rollout.json").write_text(json.dumps(result, indent=1))
+    atomic_write_text(out_dir / "rollout.json", json.dumps(result, indent=1))
     table = markdown_table(["simulation", "model", "MSE@1", "MSE@10", "MSE@50", "MSE@full",
                             "final centroid err", "max frac. outside"], rows)
-    (out_dir / "rollout.md").write_text(
+    atomic_write_text(out_dir / "rollout.md",
         "# Rollout errors (clot nodes, scaled coordinates; mean over the first h steps)\n\n"
         + table)
     result["table"] = table

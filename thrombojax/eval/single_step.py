@@ -23,12 +23,14 @@ from tqdm.auto import tqdm
 
 from thrombojax.data.augment import subsample_indices
 from thrombojax.data.scaling import Scaling
-from thrombojax.errors import ConfigError, DatasetError
+from thrombojax.errors import ConfigError
 from thrombojax.eval.metrics import mse_per_step
 from thrombojax.eval.tables import markdown_table
 from thrombojax.io.hdf5 import Dataset, open_dataset
+from thrombojax.io.outputs import atomic_write_text, check_targets
 from thrombojax.models.registry import create_model, identity_stats
 from thrombojax.simulator.step import LearnedStep, make_step
+from thrombojax.train.guards import check_finite, check_in_box, check_split_names
 from thrombojax.train.state import TrainedModel, load_trained
 from thrombojax.types import TargetStats, clot_mask
 
@@ -122,6 +124,7 @@ def evaluate_run(
     n_nodes: int | None = None,
     seed: int = 0,
     progress: bool = True,
+    force: bool = False,
 ) -> dict:
     """Single-step MSE of a trained run on one split, beside the constant-velocity baseline.
 
@@ -135,24 +138,25 @@ def evaluate_run(
         n_nodes: evaluate on a fixed seeded node subset of this size per simulation (default:
             the run's ``nodes_per_sample``, else every node). seed: subset seed.
         progress: show a progress bar.
+        force: replace an existing ``evaluate.json`` / ``evaluate.md``.
     Returns:
         The JSON-ready result: per simulation and overall MSE of model and baseline.
     """
+    out_dir = pathlib.Path(out_dir or run_dir)
+    check_targets([out_dir / "evaluate.json", out_dir / "evaluate.md"], inputs=(dataset_path,),
+                  force=force, what="evaluation")
     trained = load_trained(run_dir, which=which)
     ds = open_dataset(dataset_path)
     names = split_names(trained, ds.names, split)
-    missing = [n for n in names if n not in ds.names]
-    if missing:
-        raise DatasetError(f"{dataset_path}: no simulation(s) {missing} of the run's '{split}' "
-                           f"split; have {list(ds.names)}")
-    if not names:
-        raise ConfigError(f"{run_dir}: the run's '{split}' split is empty; use --split all")
+    check_split_names(names, ds.names, split, dataset_path, run_dir)
     step = make_step(trained.model)
     cv = make_step(create_model("constant_velocity"))
     n_nodes = n_nodes or trained.run.train.nodes_per_sample
     per_sim, all_model, all_base = {}, [], []
     for name in tqdm(names, desc=f"evaluate {split}", unit="sim", disable=not progress):
+        ds[name]  # validate values as `thrombojax info` does
         pos, node_type = scaled_simulation(ds, name, trained.scaling)
+        check_in_box(pos, name, dataset_path, run_dir)
         if n_nodes:
             idx = subsample_indices(seed, node_type, int(n_nodes))
             pos, node_type = pos[:, idx], node_type[idx]
@@ -173,15 +177,15 @@ def evaluate_run(
         "simulations": per_sim,
         "date": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
     }
-    out_dir = pathlib.Path(out_dir or run_dir)
+    check_finite({"mse": result["mse"]}, f"{run_dir}: checkpoint '{which}'")
     out_dir.mkdir(parents=True, exist_ok=True)
-    (out_dir / "evaluate.json").write_text(json.dumps(result, indent=2))
+    atomic_write_text(out_dir / "evaluate.json", json.dumps(result, indent=2))
     rows = [[n, r["windows"], r["mse"], r["constant_velocity_mse"]] for n, r in per_sim.items()]
     rows.append(["**all**", sum(r["windows"] for r in per_sim.values()), result["mse"],
                  result["constant_velocity_mse"]])
     table = markdown_table(["simulation", "windows", f"{result['model']} MSE",
                             "constant velocity MSE"], rows)
-    (out_dir / "evaluate.md").write_text(
+    atomic_write_text(out_dir / "evaluate.md",
         f"# Single-step {split} MSE ({result['metric']})\n\n{table}")
     result["table"] = table
     return result

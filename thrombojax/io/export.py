@@ -3,11 +3,16 @@
 Two formats, both a time series with moving points and per-node data:
 
 - ``"xdmf"``: ``<name>.xdmf`` (XDMF 3 XML, a temporal collection of grids) beside
-  ``<name>.h5`` holding one geometry array per frame, one shared topology and the point data.
+  ``<name>.xdmf.h5`` holding one geometry array per frame, one shared topology and the point
+  data (never ``<name>.h5``: that is the usual name of the dataset being exported).
   Written by hand rather than with ``meshio.xdmf.TimeSeriesWriter`` because that writer stores
   the points once, and our points move.
 - ``"vtu"``: ``<name>/frame_0000.vtu ...`` (meshio) plus ``<name>.pvd``, the collection file
   ParaView opens as a time series.
+
+Every file is written atomically, an existing one is replaced only with ``force=True``, the
+input file is never a target, and file names come from :func:`thrombojax.io.outputs.safe_stems`
+(simulation names with dots, slashes or Windows reserved names cannot collide or escape).
 
 Cells: clot tetrahedra and wall triangles when the simulation has them (and every index is
 kept), plus one vertex cell per node that no cell covers, so every node is visible. Point data:
@@ -24,6 +29,7 @@ import h5py
 import numpy as np
 
 from thrombojax.errors import ConfigError, DatasetError
+from thrombojax.io.outputs import atomic_path, atomic_write_text, check_targets, safe_stems
 
 __all__ = ["EXPORT_FORMATS", "export_trajectory", "export_simulation", "export_file"]
 
@@ -70,15 +76,24 @@ def _data_item(parent, h5_name: str, path: str, arr: np.ndarray) -> None:
     item.text = f"{h5_name}:{path}"
 
 
+def _targets(out: pathlib.Path, format: str) -> tuple[pathlib.Path, pathlib.Path]:
+    """(file ParaView opens, its companion: data file or frames folder) for a stem path."""
+    if out.suffix.lower() in (".xdmf", ".pvd"):
+        out = out.with_name(out.name[: -len(out.suffix)])
+    if format == "xdmf":
+        return out.with_name(out.name + ".xdmf"), out.with_name(out.name + ".xdmf.h5")
+    return out.with_name(out.name + ".pvd"), out
+
+
 def _write_xdmf(out: pathlib.Path, positions, times, blocks, static, fields) -> pathlib.Path:
-    xdmf, h5_path = out.with_suffix(".xdmf"), out.with_suffix(".h5")
+    xdmf, h5_path = _targets(out, "xdmf")
     topo = np.concatenate([
         np.hstack([np.full((c.shape[0], 1), _XDMF_ID[k])]
                   + ([np.ones((c.shape[0], 1), np.int64)] if k == "vertex" else []) + [c]).ravel()
         for k, c in blocks
     ]).astype(np.int64)
     n_cells = sum(c.shape[0] for _, c in blocks)
-    with h5py.File(h5_path, "w") as f:
+    with atomic_path(h5_path) as tmp, h5py.File(tmp, "w") as f:
         f["topology"] = topo
         for key, value in static.items():
             f[f"static/{key}"] = value
@@ -103,26 +118,29 @@ def _write_xdmf(out: pathlib.Path, positions, times, blocks, static, fields) -> 
             attr = ET.SubElement(grid, "Attribute", Name=key, AttributeType=kind, Center="Node")
             _data_item(attr, h5_path.name, path, value)
     ET.indent(root)
-    xdmf.write_text('<?xml version="1.0"?>\n' + ET.tostring(root, encoding="unicode") + "\n")
+    atomic_write_text(xdmf, '<?xml version="1.0"?>\n' + ET.tostring(root, encoding="unicode")
+                      + "\n")
     return xdmf
 
 
 def _write_vtu(out: pathlib.Path, positions, times, blocks, static, fields) -> pathlib.Path:
     import meshio
 
-    folder = out.with_suffix("")
-    folder.mkdir(parents=True, exist_ok=True)
+    pvd, folder = _targets(out, "vtu")
     root = ET.Element("VTKFile", type="Collection", version="0.1")
     coll = ET.SubElement(root, "Collection")
-    for t in range(positions.shape[0]):
-        data = dict(static) | {k: v[t] for k, v in fields.items()}
-        mesh = meshio.Mesh(positions[t].astype(np.float64), blocks, point_data=data)
-        name = f"frame_{t:05d}.vtu"
-        meshio.write(folder / name, mesh, binary=True)
-        ET.SubElement(coll, "DataSet", timestep=repr(float(times[t])), file=f"{folder.name}/{name}")
+    with atomic_path(folder) as tmp:
+        tmp.mkdir()
+        for t in range(positions.shape[0]):
+            data = dict(static) | {k: v[t] for k, v in fields.items()}
+            mesh = meshio.Mesh(positions[t].astype(np.float64), blocks, point_data=data)
+            name = f"frame_{t:05d}.vtu"
+            meshio.write(tmp / name, mesh, binary=True)
+            ET.SubElement(coll, "DataSet", timestep=repr(float(times[t])),
+                          file=f"{folder.name}/{name}")
     ET.indent(root)
-    pvd = out.with_suffix(".pvd")
-    pvd.write_text('<?xml version="1.0"?>\n' + ET.tostring(root, encoding="unicode") + "\n")
+    atomic_write_text(pvd, '<?xml version="1.0"?>\n' + ET.tostring(root, encoding="unicode")
+                      + "\n")
     return pvd
 
 
@@ -136,17 +154,22 @@ def export_trajectory(
     dt: float = 1.0,
     point_data: dict[str, np.ndarray] | None = None,
     format: str = "xdmf",
+    force: bool = True,
+    inputs: tuple = (),
 ) -> pathlib.Path:
     """Write one trajectory as a ParaView time series.
 
     Args:
-        out: output path; its suffix is replaced (``.xdmf`` + ``.h5``, or ``.pvd`` + folder).
+        out: output stem; ``.xdmf`` + ``.xdmf.h5`` (or ``.pvd`` + a frames folder) are appended
+            to its name (a trailing ``.xdmf`` / ``.pvd`` is dropped first; other dots are kept).
         positions: ``[n_frames, n_nodes, 3]`` positions (physical units).
         node_type: ``[n_nodes]`` NodeType values.
         clot_cells: ``[C, 4]`` tetrahedra or None. wall_cells: ``[F, 3]`` triangles or None.
         dt: time between frames.
         point_data: extra fields ``[n_frames, n_nodes]`` or ``[n_frames, n_nodes, k]``.
         format: ``"xdmf"`` or ``"vtu"``.
+        force: replace existing files (else :class:`~thrombojax.errors.OutputError`).
+        inputs: files that must never be written over.
     Returns:
         The path ParaView opens (``.xdmf`` or ``.pvd``).
     """
@@ -156,6 +179,7 @@ def export_trajectory(
     if positions.ndim != 3 or positions.shape[-1] != 3:
         raise DatasetError(f"export: positions must be [T, N, 3], got {positions.shape}")
     out = pathlib.Path(out)
+    check_targets(_targets(out, format), inputs=inputs, force=force, what="export")
     out.parent.mkdir(parents=True, exist_ok=True)
     blocks = _cell_blocks(positions.shape[1], clot_cells, wall_cells)
     static, fields = _point_fields(positions, node_type, point_data)
@@ -164,18 +188,20 @@ def export_trajectory(
     return writer(out, positions, times, blocks, static, fields)
 
 
-def export_simulation(sim, out: str | pathlib.Path, *, format: str = "xdmf") -> pathlib.Path:
+def export_simulation(sim, out: str | pathlib.Path, *, format: str = "xdmf", force: bool = True,
+                      inputs: tuple = ()) -> pathlib.Path:
     """Export a :class:`~thrombojax.io.hdf5.Simulation` (a dataset entry or a saved rollout).
 
     Args:
-        sim: the simulation. out: output path (see :func:`export_trajectory`).
-        format: ``"xdmf"`` or ``"vtu"``.
+        sim: the simulation. out: output stem (see :func:`export_trajectory`).
+        format: ``"xdmf"`` or ``"vtu"``. force, inputs: see :func:`export_trajectory`.
     Returns:
         The path ParaView opens.
     """
     return export_trajectory(
         out, sim.positions, sim.node_type, clot_cells=sim.clot_cells,
         wall_cells=sim.wall_cells, dt=float(sim.attrs.get("dt", 1.0)), format=format,
+        force=force, inputs=inputs,
     )
 
 
@@ -185,6 +211,8 @@ def export_file(
     *,
     names: list[str] | None = None,
     format: str = "xdmf",
+    force: bool = False,
+    progress: bool = False,
 ) -> list[pathlib.Path]:
     """Export simulations of a dataset or rollout HDF5 file (both use the dataset schema).
 
@@ -192,9 +220,15 @@ def export_file(
         path: the ``.h5`` file. out_dir: output folder (one series per simulation).
         names: simulations to export (default: all). Unknown names raise DatasetError.
         format: ``"xdmf"`` or ``"vtu"``.
+        force: replace existing exports (never ``path`` itself). Every target is checked
+            before the first is written.
+        progress: progress bar over simulations.
     Returns:
-        The written ``.xdmf`` / ``.pvd`` paths.
+        The written ``.xdmf`` / ``.pvd`` paths (one per simulation, named by
+        :func:`~thrombojax.io.outputs.safe_stems`).
     """
+    from tqdm import tqdm
+
     from thrombojax.io.hdf5 import open_dataset
 
     ds = open_dataset(path)
@@ -202,5 +236,12 @@ def export_file(
     missing = [n for n in chosen if n not in ds.names]
     if missing:
         raise DatasetError(f"{path}: no simulation(s) {missing}; available: {list(ds.names)}")
+    if format not in EXPORT_FORMATS:
+        raise ConfigError(f"export: unknown format '{format}'; known: {', '.join(EXPORT_FORMATS)}")
     out_dir = pathlib.Path(out_dir)
-    return [export_simulation(ds[n], out_dir / n, format=format) for n in chosen]
+    stems = safe_stems(chosen)
+    targets = [t for n in chosen for t in _targets(out_dir / stems[n], format)]
+    check_targets(targets, inputs=(path,), force=force, what="export")
+    return [export_simulation(ds[n], out_dir / stems[n], format=format, force=True,
+                              inputs=(path,))
+            for n in tqdm(chosen, desc="export", unit="sim", disable=not progress)]

@@ -24,7 +24,6 @@ import contextlib
 import datetime
 import json
 import os
-import uuid
 from collections.abc import Iterable, Iterator, Mapping
 from pathlib import Path
 from typing import Any
@@ -34,11 +33,13 @@ import numpy as np
 from tqdm import tqdm
 
 from thrombojax.errors import DatasetError
+from thrombojax.io.outputs import check_target, temp_path
 from thrombojax.io.schema import (
     KNOWN_NODE_TYPES,
     VESSEL_TOLERANCE,
     Simulation,
     check_positions_shape,
+    check_stored_size,
     decode_attrs,
     encode_attrs,
     natural_key,
@@ -82,7 +83,8 @@ class DatasetWriter:
             ``unknown`` (file attribute, :func:`thrombojax.study.dataset_kind`).
         skip_frames: leading frames rollouts skip on this dataset (file attribute,
             :func:`thrombojax.study.skip_frames`).
-        overwrite: replace an existing file at ``path`` (else FileExistsError).
+        overwrite, inputs: replace an existing file at ``path`` (else OutputError); ``path`` is
+            never one of ``inputs``, the files the dataset is made from.
         vessel_tol: relative tolerance of the vessel-rigidity check.
     """
 
@@ -97,6 +99,7 @@ class DatasetWriter:
         kind: str = UNKNOWN_KIND,
         skip_frames: int = 0,
         overwrite: bool = True,
+        inputs: Iterable[str | os.PathLike] = (),
         vessel_tol: float = VESSEL_TOLERANCE,
     ):
         self.path = Path(path)
@@ -116,20 +119,19 @@ class DatasetWriter:
             self._file_attrs["generator_config"] = to_json(generator_config)
         except (TypeError, ValueError) as err:
             raise simulation_error(self.path, None, "generator_config", str(err)) from err
-        self._overwrite = overwrite
+        self._overwrite, self._inputs = overwrite, tuple(inputs)
         self._vessel_tol = vessel_tol
         self._tmp: Path | None = None
         self._h5: h5py.File | None = None
         self.names: list[str] = []
 
     def _check_target(self) -> None:
-        if not self._overwrite and self.path.exists():
-            raise FileExistsError(f"{self.path}: already exists (pass overwrite=True to replace)")
+        check_target(self.path, inputs=self._inputs, force=self._overwrite, what="dataset")
 
     def __enter__(self) -> DatasetWriter:
         self._check_target()
         self.path.parent.mkdir(parents=True, exist_ok=True)
-        self._tmp = self.path.with_name(f".{self.path.name}.{uuid.uuid4().hex[:8]}.tmp")
+        self._tmp = temp_path(self.path, ".tmp")  # also removes dead processes' temporaries
         self._h5 = h5py.File(self._tmp, "w")
         created = datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds")
         self._h5.attrs.update({**self._file_attrs, "created": created})
@@ -197,6 +199,7 @@ def write_dataset(
     kind: str = UNKNOWN_KIND,
     skip_frames: int = 0,
     overwrite: bool = True,
+    inputs: Iterable[str | os.PathLike] = (),
     progress: bool = False,
 ) -> Path:
     """Write simulations (any iterable, consumed one at a time) to ``path`` atomically.
@@ -206,7 +209,7 @@ def write_dataset(
     """
     writer = DatasetWriter(path, name=name, source=source, units=units,
                            generator_config=generator_config, kind=kind,
-                           skip_frames=skip_frames, overwrite=overwrite)
+                           skip_frames=skip_frames, overwrite=overwrite, inputs=inputs)
     with writer:
         for sim in tqdm(simulations, desc="writing", unit="sim", disable=not progress):
             writer.add(sim)
@@ -289,7 +292,7 @@ class Dataset(Mapping[str, Simulation]):
                 raise fail(key, "missing")
             if obj is not None and not isinstance(obj, h5py.Dataset):
                 raise fail(key, "is not an array")
-            return obj
+            return obj if obj is None else check_stored_size(obj, key, fail)  # no 6 GB reads
 
         pos = field("positions")
         if pos.dtype != np.float32:

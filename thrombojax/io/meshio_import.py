@@ -43,6 +43,7 @@ from tqdm import tqdm
 from thrombojax.errors import ConfigError, DatasetError
 from thrombojax.io.frames import list_frame_files, read_frames
 from thrombojax.io.hdf5 import write_dataset
+from thrombojax.io.outputs import input_files
 from thrombojax.io.schema import Simulation, simulation_error, validate_simulation
 from thrombojax.types import NodeType
 
@@ -359,7 +360,8 @@ def import_mesh_series(
     sims = (read_mesh_series(src, name=n, node_type_array=node_type_array, attrs=attrs)
             for src, n in zip(sources, _names(names, len(sources)), strict=True))
     return write_dataset(out, sims, name=dataset_name or Path(out).stem, source="meshio import",
-                         units=units, overwrite=overwrite, progress=progress)
+                         units=units, overwrite=overwrite, progress=progress,
+                         inputs=input_files(sources))
 
 
 def import_abaqus(
@@ -391,4 +393,5 @@ def import_abaqus(
     sims = (read_abaqus(i, f, name=n, clot_sets=clot_sets, vessel_sets=vessel_sets, attrs=attrs)
             for i, f, n in zip(inps, frames, _names(names, len(frames)), strict=True))
     return write_dataset(out, sims, name=dataset_name or Path(out).stem, source="abaqus import",
-                         units=units, overwrite=overwrite, progress=progress)
+                         units=units, overwrite=overwrite, progress=progress,
+                         inputs=input_files([*inps, *frames]))

@@ -32,6 +32,7 @@ __all__ = [
     "Simulation",
     "validate_simulation",
     "check_positions_shape",
+    "check_stored_size",
     "simulation_error",
     "encode_attrs",
     "decode_attrs",
@@ -99,7 +100,26 @@ def simulation_error(path: Any, sim: str | None, field: str | None, problem: str
 
 def natural_key(name: str) -> list:
     """Sort key for natural order (``sim_2`` before ``sim_10``)."""
-    return [int(tok) if tok.isdigit() else tok.lower() for tok in re.split(r"(\d+)", name)]
+    # ASCII digits only: '²' is a digit to str.isdigit() but not to int()
+    return [int(tok) if tok.isascii() and tok.isdigit() else tok.lower()
+            for tok in re.split(r"([0-9]+)", name)]
+
+
+def check_stored_size(array: Any, key: str, fail) -> Any:
+    """Refuse an unfiltered HDF5 array that declares more bytes than the file stores.
+
+    An 8 KB file may declare ``positions [500, 1000000, 3]`` (6 GB of fill values); reading it
+    would take minutes and gigabytes. Checked from metadata before anything is read.
+    ``fail(key, problem)`` builds the error. Returns ``array``.
+    """
+    declared = int(array.size) * int(array.dtype.itemsize)
+    if not declared or array.id.get_create_plist().get_nfilters():
+        return array  # compressed arrays may legitimately store fewer bytes
+    stored = int(array.id.get_storage_size())
+    if stored < declared:
+        raise fail(key, f"declares shape {tuple(array.shape)} ({declared / 1e6:,.1f} MB) but the "
+                        f"file stores {stored:,} bytes of it (truncated or forged file)")
+    return array
 
 
 def check_positions_shape(shape: tuple[int, ...], fail) -> tuple[int, int]:

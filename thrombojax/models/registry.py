@@ -265,7 +265,7 @@ class ConstantVelocity:
 
     ``apply`` returns zeros, i.e. a zero *normalised* acceleration. To get zero physical
     acceleration, integrate it with :func:`identity_stats` (``TargetStats(mean=0, std=1)``), e.g.
-    ``predict_next(model, {}, identity_stats(), ...)``; with a dataset's statistics the zeros would
+    ``make_step(model)({}, identity_stats(), ...)``; with a dataset's statistics the zeros would
     denormalise to the mean acceleration instead.
     """
 

@@ -20,6 +20,7 @@ from tqdm import tqdm
 
 from thrombojax.errors import ConfigError, ThrombojaxError
 from thrombojax.io.hdf5 import DatasetWriter, Simulation
+from thrombojax.io.outputs import atomic_path, check_targets
 from thrombojax.sim.cases import Case, build_case, stack_cases
 from thrombojax.sim.material import element_J
 from thrombojax.sim.presets import Preset, get_preset
@@ -165,6 +166,7 @@ def generate_dataset(
     seed: int = 0,
     plot: bool = False,
     progress: bool = True,
+    force: bool = False,
 ) -> Path:
     """Generate a preset's dataset into ``out`` (HDF5, written atomically, streamed).
 
@@ -173,8 +175,10 @@ def generate_dataset(
         out: target file.
         n_sims: number of simulations (default: the preset's).
         seed: dataset seed (the same seed gives the same arrays).
-        plot: also write ``<out>.png`` with a few frames of the first simulation.
+        plot: also write ``<out stem>.png`` with a few frames of the first simulation.
         progress: show a progress bar.
+        force: replace an existing ``out`` (and plot); without it an existing file is refused
+            (:class:`~thrombojax.errors.OutputError`) before anything runs.
 
     Returns:
         The path written.
@@ -183,13 +187,20 @@ def generate_dataset(
     n = preset.n_sims if n_sims is None else int(n_sims)
     if n < 1:
         raise ConfigError(f"generate: --sims must be >= 1, got {n}")
+    if seed < 0:
+        raise ConfigError(f"generate: --seed must be >= 0, got {seed}")
     out = Path(out)
+    if out.suffix.lower() not in (".h5", ".hdf5"):
+        raise ConfigError(f"generate: --out {out}: a dataset file must end in .h5 or .hdf5")
+    png = out.with_suffix(".png")
+    check_targets([out, png] if plot else [out], force=force)
     first = compiled = None
     bar = tqdm(total=n, desc=f"generate {preset.name}", unit="sim", disable=not progress)
     with DatasetWriter(
         out,
         name=preset.name,
         source=SOURCE,
+        overwrite=force,
         generator_config={**preset.to_dict(), "seed": seed, "n_sims": n},
         kind=preset.study,
         skip_frames=preset.skip_frames,
@@ -209,5 +220,6 @@ def generate_dataset(
     if plot:
         from thrombojax.sim.plot import plot_simulation
 
-        plot_simulation(first, out.with_suffix(".png"))
+        with atomic_path(png) as tmp:
+            plot_simulation(first, tmp)
     return out

@@ -120,7 +120,7 @@ PRESETS: dict[str, Preset] = {
         n_buffer=161, safety=0.6, batch_size=20,
     ),
     "bendvessel-tiny": Preset(
-        name="bendvessel-tiny", kind="bend", n_sims=2, n_frames=8, study="bendvessel",
+        name="bendvessel-tiny", kind="bend", n_sims=4, n_frames=8, study="bendvessel",
         leg_in=2.0, leg_out=3.0, bend_radius=2.5, spacing=0.25, wall_rings=12, wall_around=12,
         clot_cells=6, clot_length=2.0, clot_start_range=(0.3, 0.8), n_buffer=129,
         poisson_range=(0.45, 0.49), max_substeps=40_000,
@@ -134,7 +134,7 @@ PRESETS: dict[str, Preset] = {
         safety=0.65, n_buffer=801, batch_size=1, max_substeps=400_000,
     ),
     "clotentry-tiny": Preset(
-        name="clotentry-tiny", kind="tortuous", n_sims=2, n_frames=10,
+        name="clotentry-tiny", kind="tortuous", n_sims=4, n_frames=10,
         study="clotentry", length=14.0, spacing=0.25, radius_end=1.0,
         wobble=0.03, wall_rings=30, wall_around=12, clot_cross=4, clot_cells=6,
         clot_length=2.0, clot_start_range=(0.5, 1.5), n_buffer=129, batch_size=1,

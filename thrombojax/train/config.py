@@ -25,6 +25,7 @@ import re
 from typing import Any
 
 from thrombojax.errors import ConfigError
+from thrombojax.train.checks import check_train_values
 
 __all__ = ["TrainConfig", "RunConfig", "parse_angle", "load_config_file"]
 
@@ -83,6 +84,7 @@ class TrainConfig:
     checkpoint_every: int = 0
 
     def __post_init__(self) -> None:
+        check_train_values(self)  # types, finiteness, ranges of every field
         if self.epochs < 1:
             raise ConfigError(f"epochs must be >= 1, got {self.epochs}")
         if self.batch_size is not None and self.batch_size < 1:

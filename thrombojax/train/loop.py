@@ -37,12 +37,20 @@ from thrombojax.data.batching import (
 )
 from thrombojax.data.scaling import fit_scaling
 from thrombojax.data.splits import split_simulations
-from thrombojax.errors import ConfigError, ThrombojaxError
+from thrombojax.errors import ConfigError, OutputError, ThrombojaxError
 from thrombojax.io.hdf5 import open_dataset
 from thrombojax.models.registry import canonical_name, config_to_dict, create_model, get_config
 from thrombojax.simulator.step import make_step
 from thrombojax.study import training_defaults
 from thrombojax.train.config import RunConfig, TrainConfig, load_config_file
+from thrombojax.train.guards import (
+    NonFiniteError,
+    check_finite,
+    check_resume_dataset,
+    clear_run,
+    dataset_fingerprint,
+    warn_schedule,
+)
 from thrombojax.train.schedule import make_optimizer, make_schedule
 from thrombojax.train.state import (
     TrainedModel,
@@ -94,6 +102,7 @@ def train(
     progress: bool = True,
     callback: Callable[[int, dict], None] | None = None,
     distributed: bool = False,
+    force: bool = False,
     **overrides: Any,
 ) -> TrainedModel:
     """Train a surrogate on a dataset and write a run directory.
@@ -112,6 +121,7 @@ def train(
             any checkpoint of that step is on disk.
         distributed: call ``jax.distributed.initialize()`` first (multi-host; see
             :mod:`thrombojax.train.step`).
+        force: start afresh in an ``out_dir`` that holds a run (its files are removed).
         **overrides: :class:`TrainConfig` fields.
     Returns:
         The best :class:`TrainedModel` (lowest validation MSE).
@@ -125,6 +135,7 @@ def train(
     if dataset_path is None or model_name is None:
         raise ConfigError("train: name a dataset and a model (or a run's config.json as config)")
     model_name = canonical_name(model_name)
+    saved = None
     if resume:
         saved = read_run_config(out_dir)
         saved_cfg = TrainConfig.from_dict(saved["train"])
@@ -139,13 +150,19 @@ def train(
         # killed before its first checkpoint: nothing to continue, start the same run afresh
         resume = latest_step(out_dir / "checkpoints" / "last") is not None
     elif latest_step(out_dir / "checkpoints" / "last") is not None:
-        raise FileExistsError(
-            f"{out_dir}: already holds a training run; use --resume or a new --out"
-        )
+        if not force:
+            raise OutputError(f"{out_dir}: already holds a training run; use --resume, a new "
+                              "--out, or --force to replace it")
+        clear_run(out_dir)
+    warn_schedule(cfg.epochs, cfg.warmup_epochs)
     out_dir.mkdir(parents=True, exist_ok=True)
 
     ds = open_dataset(dataset_path)
+    ds.validate()  # the values `thrombojax info` checks, before any training
     scaling = fit_scaling(ds)
+    fingerprint = dataset_fingerprint(ds)
+    if saved is not None:
+        check_resume_dataset(saved, fingerprint, scaling.to_dict(), dataset_path, out_dir)
     split = split_simulations(list(ds.names), n_test=cfg.n_test, n_val=cfg.n_val,
                               seed=cfg.split_seed)
     length = cfg.rollout_steps + 2
@@ -180,6 +197,7 @@ def train(
         **RunConfig(model=model_name, dataset=str(pathlib.Path(dataset_path).resolve()),
                     train=cfg).to_dict(),
         "stats": stats.to_dict(), "scaling": scaling.to_dict(), "budget": budget,
+        "dataset_fingerprint": fingerprint,
         "steps_per_epoch": steps_per_epoch, "total_steps": total_steps, "devices": mesh.size,
         "split": split.to_dict(),
     }
@@ -237,6 +255,11 @@ def train(
                 record = _end_epoch(epoch, step + 1, acc, val_batches, eval_step, state, mesh,
                                     float(schedule(step)), time.perf_counter() - t0)
                 _log(out_dir, record)
+                try:  # never save a checkpoint whose metrics are NaN / infinite
+                    check_finite(record, f"{out_dir}: epoch {epoch + 1}")
+                except NonFiniteError as err:
+                    raise TrainingDivergedError(f"{err}; not saved, the last good checkpoint is "
+                                                f"kept in {ckpt / 'last'}") from err
                 score = record.get("val_mse", record["train_mse"])
                 acc = np.zeros(3)
                 if score < best:

@@ -33,8 +33,9 @@ from thrombojax.data.scaling import Scaling
 from thrombojax.data.splits import Split
 from thrombojax.errors import ConfigError
 from thrombojax.models.registry import Surrogate, config_from_dict, create_model
+from thrombojax.simulator.step import make_input
 from thrombojax.train.config import RunConfig
-from thrombojax.types import TargetStats
+from thrombojax.types import NodeType, TargetStats
 
 __all__ = [
     "TrainState",
@@ -183,7 +184,15 @@ def read_run_config(run_dir: str | pathlib.Path) -> dict:
     path = pathlib.Path(run_dir) / "config.json"
     if not path.is_file():
         raise FileNotFoundError(f"{path}: not a thrombojax run directory (no config.json)")
-    return json.loads(path.read_text())
+    try:
+        config = json.loads(path.read_text())
+    except (json.JSONDecodeError, UnicodeDecodeError) as err:
+        raise ConfigError(f"{path}: corrupt run config (not valid JSON: {err})") from err
+    missing = [k for k in ("model", "dataset", "train", "stats", "scaling")
+               if not isinstance(config, dict) or k not in config]
+    if missing:
+        raise ConfigError(f"{path}: corrupt or foreign run config, missing {missing}")
+    return config
 
 
 def _json_default(value: Any) -> Any:
@@ -210,22 +219,56 @@ def load_trained(run_dir: str | pathlib.Path, *, which: str = "best") -> Trained
     ckpt = run_dir / "checkpoints" / which
     if latest_step(ckpt) is None:
         raise ConfigError(f"{run_dir}: no '{which}' checkpoint in {ckpt}")
-    params, _, _ = restore_checkpoint(ckpt)
+    try:
+        params, _, meta = restore_checkpoint(ckpt)
+    except ConfigError:
+        raise
+    except Exception as err:  # orbax / tensorstore errors on truncated or bit-flipped files
+        first = " ".join(str(err).split())[:200]
+        raise ConfigError(f"{ckpt}: checkpoint cannot be read (corrupt or incomplete run "
+                          f"folder): {type(err).__name__}: {first}") from err
+    config_path = run_dir / "config.json"
     try:
         run = RunConfig.from_dict(config)
-    except ConfigError as err:
-        raise ConfigError(f"{run_dir / 'config.json'}: {err}") from err
-    model = create_model(run.model, config_from_dict(run.model, run.train.model_config))
-    try:
         split = Split.from_dict(config.get("split", {}))
     except ConfigError as err:
-        raise ConfigError(f"{run_dir / 'config.json'}: {err}") from err
-    return TrainedModel(
-        model=model,
-        params=params,
-        stats=TargetStats.from_dict(config["stats"]),
-        scaling=Scaling.from_dict(config["scaling"]),
-        run=run,
-        split=split,
-        config=config,
-    )
+        raise ConfigError(f"{config_path}: {err}") from err
+    if isinstance(meta, dict) and meta.get("model", run.model) != run.model:
+        raise ConfigError(f"{run_dir}: config.json is for model '{run.model}' but the "
+                          f"'{which}' checkpoint is a '{meta.get('model')}' run")
+    if not all(bool(jnp.isfinite(x).all()) for x in jax.tree.leaves(params)):
+        raise ConfigError(f"{ckpt}: checkpoint holds NaN or infinite weights; not usable")
+    try:
+        model = create_model(run.model, config_from_dict(run.model, run.train.model_config))
+        trained = TrainedModel(
+            model=model, params=params, stats=TargetStats.from_dict(config["stats"]),
+            scaling=Scaling.from_dict(config["scaling"]), run=run, split=split, config=config,
+        )
+    except (KeyError, TypeError, ValueError) as err:
+        if isinstance(err, ConfigError):
+            raise
+        raise ConfigError(f"{config_path}: does not match the run's checkpoint "
+                          f"({type(err).__name__}: {err})") from err
+    _check_params_fit(trained, config_path, ckpt)
+    return trained
+
+
+def _check_params_fit(trained: TrainedModel, config_path: pathlib.Path, ckpt: pathlib.Path) -> None:
+    """The checkpoint's parameter tree must be the one the config's model creates."""
+    n = 8
+    pos = jnp.zeros((n, 3), jnp.float32) + jnp.linspace(0, 0.1, n)[:, None]
+    node_type = jnp.full(n, NodeType.CLOT, jnp.int32)
+    inputs = make_input(pos, pos, node_type, jnp.ones(n, bool))
+    try:
+        want = jax.eval_shape(lambda: trained.model.init(
+            jax.random.key(0), inputs, trained.model.build_graph(inputs)))
+    except Exception:  # noqa: BLE001  a model whose init needs more than this: skip the check
+        return
+
+    def shapes(tree) -> dict:
+        flat = jax.tree_util.tree_flatten_with_path(tree)[0]
+        return {jax.tree_util.keystr(k): tuple(v.shape) for k, v in flat}
+
+    if shapes(trained.params) != shapes(want):
+        raise ConfigError(f"{ckpt}: the checkpoint's weights do not fit the model described by "
+                          f"{config_path} (a config.json from another run or model?)")

@@ -1,0 +1,72 @@
+"""Argument types of the ``thrombojax`` command: every number checked when the flags are parsed.
+
+Each factory returns an ``argparse`` ``type=`` callable that rejects non-numbers, NaN and
+infinities and values out of range with argparse's one-line usage error (exit status 2) that
+names the option, e.g. ``argument --warmup-epochs: must be >= 0, got -1``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+from collections.abc import Callable
+
+__all__ = ["int_at_least", "float_at_least", "float_above", "angle"]
+
+
+def _number(text: str, kind: type) -> float:
+    try:
+        value = kind(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"must be {'an integer' if kind is int else 'a number'}, got {text!r}") from None
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"must be finite, got {text!r}")
+    return value
+
+
+def int_at_least(low: int) -> Callable[[str], int]:
+    """An integer ``>= low``."""
+    def parse(text: str) -> int:
+        value = int(_number(text, int))
+        if value < low:
+            raise argparse.ArgumentTypeError(f"must be >= {low}, got {value}")
+        return value
+    parse.__name__ = f"integer >= {low}"
+    return parse
+
+
+def float_at_least(low: float) -> Callable[[str], float]:
+    """A finite float ``>= low``."""
+    def parse(text: str) -> float:
+        value = _number(text, float)
+        if value < low:
+            raise argparse.ArgumentTypeError(f"must be >= {low:g}, got {value:g}")
+        return value
+    parse.__name__ = f"number >= {low:g}"
+    return parse
+
+
+def float_above(low: float) -> Callable[[str], float]:
+    """A finite float ``> low``."""
+    def parse(text: str) -> float:
+        value = _number(text, float)
+        if value <= low:
+            raise argparse.ArgumentTypeError(f"must be > {low:g}, got {value:g}")
+        return value
+    parse.__name__ = f"number > {low:g}"
+    return parse
+
+
+def angle(text: str) -> float:
+    """An angle in radians, ``>= 0`` and finite (also ``pi``, ``pi/2``, ``0.5pi``, ``90deg``)."""
+    from thrombojax.errors import ConfigError
+    from thrombojax.train.config import parse_angle
+
+    try:
+        value = parse_angle(text)
+    except ConfigError as err:
+        raise argparse.ArgumentTypeError(str(err)) from None
+    if not math.isfinite(value) or value < 0:
+        raise argparse.ArgumentTypeError(f"must be a finite angle >= 0, got {text!r}")
+    return value

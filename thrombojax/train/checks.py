@@ -1,0 +1,86 @@
+"""Value checks of a training configuration: types, finiteness and ranges of every field.
+
+:func:`check_train_values` runs when a :class:`~thrombojax.train.config.TrainConfig` is built
+(from flags, a ``--config`` JSON file or a run's ``config.json``), so a wrongly typed JSON value,
+``--max-rotation nan``, a negative warm-up, noise, checkpoint interval or frame skip is one
+:class:`~thrombojax.errors.ConfigError` naming the option, before any data is read.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+from thrombojax.errors import ConfigError
+
+__all__ = ["check_train_values", "MAX_BARY_RATIO"]
+
+# BaryCentricSampling draws bary_ratio generated samples per real one; the study used 2.
+MAX_BARY_RATIO = 64.0
+
+# field -> (kind, lower bound, bound inclusive, may be None)
+_RULES: dict[str, tuple[str, float, bool, bool]] = {
+    "epochs": ("int", 1, True, False),
+    "batch_size": ("int", 1, True, True),
+    "lr": ("float", 0.0, False, True),
+    "warmup_epochs": ("float", 0.0, True, False),
+    "weight_decay": ("float", 0.0, True, False),
+    "grad_clip": ("float", 0.0, False, True),
+    "radius": ("float", 0.0, False, True),
+    "max_rotation": ("float", 0.0, True, False),
+    "nodes_per_sample": ("int", 1, True, True),
+    "bary_ratio": ("float", 0.0, True, False),
+    "bary_radius": ("float", 0.0, False, True),
+    "bary_max_neighbors": ("int", 2, True, False),
+    "noise_std": ("float", 0.0, True, False),
+    "noise_gamma": ("float", 0.0, True, False),
+    "seed": ("int", 0, True, False),
+    "split_seed": ("int", 0, True, False),
+    "n_val": ("int", 0, True, False),
+    "n_test": ("int", 0, True, False),
+    "skip_frames": ("int", 0, True, False),
+    "checkpoint_every": ("int", 0, True, False),
+    "rollout_steps": ("int", 1, True, False),
+}
+
+
+def _option(name: str) -> str:
+    return "--" + name.replace("_", "-")
+
+
+def _check_one(name: str, value: Any) -> None:
+    kind, low, inclusive, optional = _RULES[name]
+    if value is None:
+        if optional:
+            return
+        raise ConfigError(f"{_option(name)} ({name}) must be a number, got null")
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        noun = "an integer" if kind == "int" else "a number"
+        raise ConfigError(f"{_option(name)} ({name}) must be {noun}, got "
+                          f"{type(value).__name__} {value!r}")
+    if kind == "int" and not float(value).is_integer():
+        raise ConfigError(f"{_option(name)} ({name}) must be an integer, got {value!r}")
+    if not math.isfinite(value):
+        raise ConfigError(f"{_option(name)} ({name}) must be finite, got {value!r}")
+    if value < low or (value == low and not inclusive):
+        sign = ">=" if inclusive else ">"
+        raise ConfigError(f"{_option(name)} ({name}) must be {sign} {low:g}, got {value!r}")
+
+
+def check_train_values(cfg: Any) -> None:
+    """Check every field of a TrainConfig; raises :class:`ConfigError` naming the option.
+
+    Also: ``bary_ratio`` at most :data:`MAX_BARY_RATIO` (each real sample would bring that many
+    generated ones into memory per step), ``tiny`` a boolean, ``model_config`` an object.
+    """
+    for name in _RULES:
+        if hasattr(cfg, name):
+            _check_one(name, getattr(cfg, name))
+    if cfg.bary_ratio > MAX_BARY_RATIO:
+        raise ConfigError(f"--bary-ratio (bary_ratio) {cfg.bary_ratio:g} asks for that many "
+                          f"generated samples per real one; at most {MAX_BARY_RATIO:g} "
+                          "(the study used 2)")
+    if not isinstance(cfg.tiny, bool):
+        raise ConfigError(f"--tiny (tiny) must be true or false, got {cfg.tiny!r}")
+    if not isinstance(cfg.model_config, dict):
+        raise ConfigError(f"model_config must be a JSON object, got {cfg.model_config!r}")
