@@ -36,6 +36,7 @@ from thrombojax.data.batching import (
     padding_budget,
 )
 from thrombojax.errors import CapacityOverflowError, ConfigError, OutputError, ThrombojaxError
+from thrombojax.io.outputs import atomic_path
 from thrombojax.train.config import TrainConfig, load_config_file
 from thrombojax.train.guards import (
     NonFiniteError,
@@ -342,5 +343,6 @@ def plot_losses(metrics_path: str | pathlib.Path, out_png: str | pathlib.Path) -
         ax.legend()
     fig.tight_layout()
     out_png = pathlib.Path(out_png)
-    fig.savefig(out_png, dpi=100)
+    with atomic_path(out_png) as tmp:
+        fig.savefig(tmp, dpi=100)
     return out_png
