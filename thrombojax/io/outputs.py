@@ -23,6 +23,7 @@ import hashlib
 import os
 import re
 import shutil
+import time
 import uuid
 from collections.abc import Iterable, Iterator
 from pathlib import Path
@@ -163,9 +164,14 @@ def _remove(path: Path) -> None:
             path.unlink()
 
 
-def _pid_alive(pid: int) -> bool:
+def _pid_alive(pid: int, path: Path) -> bool:
     if pid == os.getpid():
         return True
+    if os.name == "nt":  # os.kill(pid, 0) would terminate it there: go by age instead
+        try:
+            return time.time() - path.stat().st_mtime < 86400
+        except OSError:
+            return False
     try:
         os.kill(pid, 0)
     except ProcessLookupError:
@@ -176,7 +182,8 @@ def _pid_alive(pid: int) -> bool:
 
 
 def clean_temporaries(folder: str | os.PathLike) -> list[Path]:
-    """Remove thrombojax temporaries in ``folder`` left by processes that no longer run.
+    """Remove thrombojax temporaries in ``folder`` left by processes that no longer run
+    (on Windows: older than a day, since a process id cannot be probed safely there).
 
     Returns:
         The removed paths.
@@ -188,7 +195,7 @@ def clean_temporaries(folder: str | os.PathLike) -> list[Path]:
     with contextlib.suppress(OSError):
         for entry in folder.iterdir():
             m = _TEMP_RE.match(entry.name)
-            if m and not _pid_alive(int(m.group(1))):
+            if m and not _pid_alive(int(m.group(1)), entry):
                 _remove(entry)
                 removed.append(entry)
     return removed
