@@ -41,6 +41,7 @@ __all__ = [
     "clean_temporaries",
     "input_files",
     "temp_path",
+    "fresh_owned_folder",
 ]
 
 TEMP_TAG = ".tjxtmp-"
@@ -250,3 +251,25 @@ def atomic_write_text(target: str | os.PathLike, text: str) -> Path:
     with atomic_path(target) as tmp:
         tmp.write_text(text)
     return target
+
+
+def fresh_owned_folder(folder: str | os.PathLike, owner: str) -> Path:
+    """Empty ``folder`` for a command that rewrites it whole (e.g. the demo), safely.
+
+    A folder this owner made before (it holds the marker ``.thrombojax-<owner>``) is removed
+    and re-created; an empty or missing folder is created; any other existing folder is
+    refused with :class:`~thrombojax.errors.OutputError` (it may hold a user's data).
+    """
+    folder = Path(folder)
+    marker = f".thrombojax-{owner}"
+    if folder.exists():
+        if not folder.is_dir():
+            raise OutputError(f"{folder}: exists and is not a folder")
+        if any(folder.iterdir()) and not (folder / marker).is_file():
+            raise OutputError(f"{folder}: exists and was not written by thrombojax {owner}; "
+                              "choose a new or empty output folder")
+        shutil.rmtree(folder)
+    folder.mkdir(parents=True)
+    (folder / marker).write_text(f"written by thrombojax {owner}; its next run replaces this "
+                                 "whole folder\n")
+    return folder
