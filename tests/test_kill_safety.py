@@ -43,7 +43,7 @@ def opens(path: Path) -> None:
 
 
 def kill_while_writing(argv: list[str], folder: Path, after: int = 1,
-                       timeout: float = 120.0) -> bool:
+                       timeout: float = 120.0, tag: str = ".tjxtmp-") -> bool:
     """Start ``thrombojax ARGV``; SIGKILL it as soon as the ``after``-th distinct temporary
     appears in ``folder``. Returns whether it was killed mid-write (else it finished first)."""
     env = {**os.environ, "PYTHONPATH": str(REPO), "MPLBACKEND": "Agg"}
@@ -52,7 +52,8 @@ def kill_while_writing(argv: list[str], folder: Path, after: int = 1,
     deadline = time.monotonic() + timeout
     killed, seen = False, set()
     while proc.poll() is None and time.monotonic() < deadline:
-        seen |= set(temporaries(folder)) if folder.exists() else set()
+        if folder.exists():
+            seen |= {p for p in folder.rglob("*") if tag in p.name}
         if len(seen) >= after:
             proc.send_signal(signal.SIGKILL)
             killed = True
@@ -92,4 +93,25 @@ def test_kill_generate(tmp_path, plot):
     killed = kill_while_writing(argv + (["--plot"] if plot else []), out)
     assert killed
     assert not target.exists()  # the dataset only appears complete
+    check_targets_and_cleanup(out, tmp_path)
+
+
+@pytest.mark.slow
+def test_kill_train_mid_checkpoint_then_resume_and_kill_rollout(tmp_path):
+    from thrombojax.train.state import load_trained, read_run_config
+
+    sims = [make_simulation(f"sim_{i}", n_frames=8, seed=i) for i in range(3)]
+    data = write_dataset(tmp_path / "d.h5", sims, name="d", source="t")
+    run = tmp_path / "run"
+    train_argv = ["train", "--dataset", str(data), "--model", "mgn", "--out", str(run),
+                  "--tiny", "--epochs", "2", "--n-val", "1", "--batch-size", "1",
+                  "--warmup-epochs", "0", "--quiet"]
+    assert kill_while_writing(train_argv, run, tag="orbax-checkpoint-tmp")
+    read_run_config(run)  # config.json is complete
+    assert main([*train_argv, "--resume"]) == 0  # continues (or restarts) from what is on disk
+    load_trained(run, which="best")
+    out = tmp_path / "ro"
+    ro_argv = ["rollout", "--run", str(run), "--dataset", str(data), "--out", str(out),
+               "--split", "all", "--skip", "2", "--quiet"]
+    assert kill_while_writing(ro_argv, out, after=4)
     check_targets_and_cleanup(out, tmp_path)
