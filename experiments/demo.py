@@ -31,6 +31,7 @@ from thrombojax.eval.bench import bench, bench_markdown
 from thrombojax.eval.report import rollout_run
 from thrombojax.eval.single_step import evaluate_run
 from thrombojax.io.export import export_file
+from thrombojax.io.outputs import fresh_owned_folder
 from thrombojax.sim.generate import generate_dataset
 from thrombojax.sim.presets import get_preset
 from thrombojax.train.loop import train
@@ -91,10 +92,7 @@ def run_demo(out: str | pathlib.Path, config: DemoConfig = DemoConfig(), *,
     Returns:
         Paths of the dataset, run, tables, plots, animation and exports.
     """
-    out = pathlib.Path(out)
-    if out.exists():
-        shutil.rmtree(out)
-    out.mkdir(parents=True)
+    out = fresh_owned_folder(out, "demo")  # never removes a folder the demo did not make
     start = time.perf_counter()
     paths: dict[str, pathlib.Path] = {}
 

@@ -25,6 +25,7 @@ from thrombojax.io.outputs import (
     atomic_path,
     check_target,
     clean_temporaries,
+    fresh_owned_folder,
     safe_stem,
     safe_stems,
 )
@@ -210,3 +211,16 @@ def test_unwritable_output_is_one_line(tmp_path, capsys, command):
     assert main(argv) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and str(blocked) in err[0]
+
+
+def test_demo_folder_never_removes_a_users_folder(tmp_path):
+    user = tmp_path / "results"
+    user.mkdir()
+    (user / "weeks_of_work.h5").write_bytes(b"precious")
+    with pytest.raises(OutputError, match="not written by thrombojax demo"):
+        fresh_owned_folder(user, "demo")
+    assert (user / "weeks_of_work.h5").read_bytes() == b"precious"
+    demo = fresh_owned_folder(tmp_path / "demo_output", "demo")
+    (demo / "old.png").write_bytes(b"x")
+    fresh_owned_folder(demo, "demo")  # its own folder: replaced whole
+    assert not (demo / "old.png").exists() and (demo / ".thrombojax-demo").is_file()

@@ -10,10 +10,10 @@ import shutil
 
 import numpy as np
 import pytest
-from thrombojax.eval.bench import synthetic_cloud
 
 from thrombojax.cli import main
 from thrombojax.errors import ConfigError
+from thrombojax.eval.bench import synthetic_cloud
 from thrombojax.io.hdf5 import Simulation, open_dataset, write_dataset
 from thrombojax.train.config import TrainConfig, load_config_file
 from thrombojax.train.guards import NonFiniteError, check_finite, check_in_box
@@ -278,3 +278,38 @@ def test_tiny_presets_fit_the_default_split(preset):
     names = [f"{preset}_{i:03d}" for i in range(get_preset(preset).n_sims)]
     split = split_simulations(names, n_test=cfg.n_test, n_val=cfg.n_val, seed=cfg.split_seed)
     assert split.train and len(split.val) == cfg.n_val and len(split.test) == cfg.n_test
+
+
+def test_train_summary_names_best_metric_epochs_and_files(tiny_run):
+    from thrombojax.train.summary import run_summary
+
+    _, run, _ = tiny_run
+    text = run_summary(run, "mgn")
+    best = min(json.loads(ln)["val_mse"] for ln in (run / "metrics.jsonl").read_text().splitlines()
+               if "val_mse" in ln)
+    assert "1 epoch(s)" in text and f"{best:.4g}" in text and "validation" in text
+    assert str(run / "config.json") in text and "checkpoints" in text
+
+
+def test_warnings_for_whole_run_warmup_and_large_cpu_benchmarks():
+    import jax
+
+    from thrombojax.eval.bench import STUDY_CASES
+    from thrombojax.train.guards import warn_large_cpu_cases, warn_schedule
+
+    with pytest.warns(UserWarning, match="never reaches its peak"):
+        warn_schedule(5, 10.0)
+    if jax.default_backend() == "cpu":
+        with pytest.warns(UserWarning, match="27,000 nodes"):
+            warn_large_cpu_cases(("bendvessel", "clotentry-full"), None, STUDY_CASES)
+
+
+def test_bench_says_where_it_wrote_and_refuses_to_replace(tmp_path, capsys):
+    argv = ["bench", "--models", "mgn", "--cases", "bendvessel", "--tiny", "--nodes", "64",
+            "--max-steps", "2", "--repeats", "1", "--out", str(tmp_path / "b"), "--quiet"]
+    assert main(argv) == 0
+    assert f"wrote {tmp_path / 'b' / 'bench.json'}" in capsys.readouterr().out
+    before = (tmp_path / "b" / "bench.json").read_text()
+    assert main(argv) == 2
+    one_line_error(capsys, "bench.json", "--force")
+    assert (tmp_path / "b" / "bench.json").read_text() == before

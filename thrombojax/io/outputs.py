@@ -23,6 +23,7 @@ import hashlib
 import os
 import re
 import shutil
+import time
 import uuid
 from collections.abc import Iterable, Iterator
 from pathlib import Path
@@ -40,6 +41,7 @@ __all__ = [
     "clean_temporaries",
     "input_files",
     "temp_path",
+    "fresh_owned_folder",
 ]
 
 TEMP_TAG = ".tjxtmp-"
@@ -163,9 +165,14 @@ def _remove(path: Path) -> None:
             path.unlink()
 
 
-def _pid_alive(pid: int) -> bool:
+def _pid_alive(pid: int, path: Path) -> bool:
     if pid == os.getpid():
         return True
+    if os.name == "nt":  # os.kill(pid, 0) would terminate it there: go by age instead
+        try:
+            return time.time() - path.stat().st_mtime < 86400
+        except OSError:
+            return False
     try:
         os.kill(pid, 0)
     except ProcessLookupError:
@@ -176,7 +183,8 @@ def _pid_alive(pid: int) -> bool:
 
 
 def clean_temporaries(folder: str | os.PathLike) -> list[Path]:
-    """Remove thrombojax temporaries in ``folder`` left by processes that no longer run.
+    """Remove thrombojax temporaries in ``folder`` left by processes that no longer run
+    (on Windows: older than a day, since a process id cannot be probed safely there).
 
     Returns:
         The removed paths.
@@ -188,7 +196,7 @@ def clean_temporaries(folder: str | os.PathLike) -> list[Path]:
     with contextlib.suppress(OSError):
         for entry in folder.iterdir():
             m = _TEMP_RE.match(entry.name)
-            if m and not _pid_alive(int(m.group(1))):
+            if m and not _pid_alive(int(m.group(1)), entry):
                 _remove(entry)
                 removed.append(entry)
     return removed
@@ -243,3 +251,25 @@ def atomic_write_text(target: str | os.PathLike, text: str) -> Path:
     with atomic_path(target) as tmp:
         tmp.write_text(text)
     return target
+
+
+def fresh_owned_folder(folder: str | os.PathLike, owner: str) -> Path:
+    """Empty ``folder`` for a command that rewrites it whole (e.g. the demo), safely.
+
+    A folder this owner made before (it holds the marker ``.thrombojax-<owner>``) is removed
+    and re-created; an empty or missing folder is created; any other existing folder is
+    refused with :class:`~thrombojax.errors.OutputError` (it may hold a user's data).
+    """
+    folder = Path(folder)
+    marker = f".thrombojax-{owner}"
+    if folder.exists():
+        if not folder.is_dir():
+            raise OutputError(f"{folder}: exists and is not a folder")
+        if any(folder.iterdir()) and not (folder / marker).is_file():
+            raise OutputError(f"{folder}: exists and was not written by thrombojax {owner}; "
+                              "choose a new or empty output folder")
+        shutil.rmtree(folder)
+    folder.mkdir(parents=True)
+    (folder / marker).write_text(f"written by thrombojax {owner}; its next run replaces this "
+                                 "whole folder\n")
+    return folder

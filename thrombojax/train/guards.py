@@ -110,9 +110,10 @@ def check_split_names(names: list[str], available: Iterable[str], split: str, da
                           f"--n-{split} 0?); choose --split all or another split")
     missing = [n for n in names if n not in available]
     if missing:
-        raise DatasetError(f"{dataset_path}: has no simulation(s) {missing[:5]} of the run "
-                           f"{run_dir}'s '{split}' split (a different dataset?); available: "
-                           f"{available[:8]}")
+        origin = ("asked for with --sim" if split == "--sim"
+                  else f"of the run {run_dir}'s '{split}' split (a different dataset?)")
+        raise DatasetError(f"{dataset_path}: has no simulation(s) {missing[:5]} {origin}; "
+                           f"available: {available[:8]}")
 
 
 def check_in_box(pos: np.ndarray, name: str, dataset_path: Any, run_dir: Any) -> None:

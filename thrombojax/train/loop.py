@@ -39,6 +39,7 @@ from thrombojax.data.scaling import fit_scaling
 from thrombojax.data.splits import split_simulations
 from thrombojax.errors import ConfigError, OutputError, ThrombojaxError
 from thrombojax.io.hdf5 import open_dataset
+from thrombojax.io.outputs import atomic_path
 from thrombojax.models.registry import canonical_name, config_to_dict, create_model, get_config
 from thrombojax.simulator.step import make_step
 from thrombojax.study import training_defaults
@@ -350,5 +351,6 @@ def plot_losses(metrics_path: str | pathlib.Path, out_png: str | pathlib.Path) -
         ax.legend()
     fig.tight_layout()
     out_png = pathlib.Path(out_png)
-    fig.savefig(out_png, dpi=100)
+    with atomic_path(out_png) as tmp:
+        fig.savefig(tmp, dpi=100)
     return out_png

@@ -173,10 +173,10 @@ def restore_checkpoint(
 
 def write_run_config(run_dir: str | pathlib.Path, config: dict) -> None:
     """Write ``run_dir/config.json`` (atomically)."""
-    path = pathlib.Path(run_dir) / "config.json"
-    tmp = path.with_suffix(".json.tmp")
-    tmp.write_text(json.dumps(config, indent=2, sort_keys=True, default=_json_default))
-    tmp.replace(path)
+    from thrombojax.io.outputs import atomic_write_text
+
+    atomic_write_text(pathlib.Path(run_dir) / "config.json",
+                      json.dumps(config, indent=2, sort_keys=True, default=_json_default))
 
 
 def read_run_config(run_dir: str | pathlib.Path) -> dict:
