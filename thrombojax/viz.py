@@ -7,6 +7,7 @@ aspect 1:1:1), so shapes are not distorted and the two panels compare directly.
 
 from __future__ import annotations
 
+import os
 import pathlib
 
 import matplotlib
@@ -96,10 +97,10 @@ def plot_rollout_metrics(
 
 
 def _save(fig, path) -> pathlib.Path:
-    path = pathlib.Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
+    from thrombojax.viz_scene import save_atomic
+
     fig.tight_layout()
-    fig.savefig(path)
+    path = save_atomic(lambda tmp: fig.savefig(tmp, format="png"), path)
     plt.close(fig)
     return path
 
@@ -296,9 +297,20 @@ def animate_rollout(
         pred, true, node_type, max_wall_points=max_wall_points, title=title, labels=labels,
         seed=seed, first_frame=first_frame, dt=dt, units=units, time_unit=time_unit,
         correction=correction, spread=spread)
+    from thrombojax.viz_scene import save_atomic
+
     anim = FuncAnimation(fig, update, frames=n_frames, blit=False)
-    path = pathlib.Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    anim.save(path, writer=PillowWriter(fps=fps))
-    plt.close(fig)
-    return path
+    try:
+        return save_atomic(lambda tmp: _save_gif(anim, tmp, fps), path)
+    finally:
+        plt.close(fig)
+
+
+def _save_gif(anim, tmp: pathlib.Path, fps: int) -> None:
+    """Save as GIF under a name PillowWriter accepts (its format comes from the suffix)."""
+    gif = tmp.with_name(tmp.name + ".gif")
+    try:
+        anim.save(gif, writer=PillowWriter(fps=fps))
+        os.replace(gif, tmp)
+    finally:
+        gif.unlink(missing_ok=True)

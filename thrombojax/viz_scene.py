@@ -10,13 +10,17 @@ is seen as a bend.
 
 from __future__ import annotations
 
+import os
+import pathlib
+from collections.abc import Callable
+
 import numpy as np
 
 from thrombojax.types import NodeType
 
 __all__ = [
     "view_limits", "camera_angles", "wall_subset", "outside_box", "setup_axes", "draw_wall",
-    "draw_clot", "WALL_STYLE",
+    "draw_clot", "save_atomic", "WALL_STYLE",
 ]
 
 WALL_STYLE = {"s": 3.0, "c": "0.5", "alpha": 0.35, "depthshade": False, "linewidths": 0}
@@ -114,3 +118,19 @@ def draw_clot(ax, clot_xyz: np.ndarray, *, values=None, color="tab:blue", cmap="
     return ax.scatter(*xyz, s=size, c=np.asarray(values), cmap=cmap, norm=norm,
                       depthshade=False, zorder=zorder, label=label, linewidths=0,
                       axlim_clip=True)
+
+
+def save_atomic(write: Callable[[pathlib.Path], object], path: str | pathlib.Path) -> pathlib.Path:
+    """Write a picture atomically: ``write(tmp)`` into a hidden file beside ``path``, then rename.
+
+    ``write`` must write the file's format explicitly (the temporary name ends in ``.tmp``).
+    """
+    path = pathlib.Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.tmp")
+    try:
+        write(tmp)
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
+    return path

@@ -24,6 +24,7 @@ from thrombojax.viz_scene import (  # noqa: E402
     draw_clot,
     draw_wall,
     outside_box,
+    save_atomic,
     setup_axes,
     view_limits,
     wall_subset,
@@ -121,8 +122,7 @@ def plot_rollout_summary(
     bar.set_label(f"clot error: distance to truth [{units}]", fontsize=9)
     head = title or "rollout: surrogate vs constant velocity vs ground truth"
     fig.suptitle(f"{head}\n(lengths in {units})", fontsize=12)
-    path = pathlib.Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path)
-    plt.close(fig)
-    return path
+    try:
+        return save_atomic(lambda tmp: fig.savefig(tmp, format="png"), path)
+    finally:
+        plt.close(fig)
