@@ -6,8 +6,10 @@ For each chosen simulation, into ``out_dir``:
   s_{t0-1}, s_{t0}, then the predictions), so every dataset tool (``thrombojax info``,
   ``thrombojax export``) reads it;
 - ``<sim>_prediction.xdmf`` / ``<sim>_truth.xdmf`` (+ ``.h5``): ParaView time series with
-  ``node_type`` and the per-node ``error`` (distance to the truth) as point data;
-- ``<sim>_rollout.gif``: prediction beside ground truth, equal axes;
+  ``node_type`` and the per-node ``error`` (distance to the truth) as point data, at the
+  physical times ``frame * dt`` (so they play in step with an exported dataset simulation);
+- ``<sim>_rollout.gif``: prediction beside ground truth, equal axes, clot coloured by error;
+- ``<sim>_summary.png``: the model, constant velocity and the truth side by side at 4 frames;
 - ``<sim>_error.png`` (MSE per step) and ``<sim>_metrics.png`` (MSE, centroid error, fraction
   outside the vessel), always with the constant-velocity baseline;
 - ``rollout.json`` (all metrics and curves) and ``rollout.md`` (horizon table).
@@ -33,6 +35,7 @@ from thrombojax.evaluate import (
 )
 from thrombojax.io.export import export_trajectory
 from thrombojax.viz import animate_rollout, plot_error_curves, plot_rollout_metrics
+from thrombojax.viz_summary import plot_rollout_summary
 
 __all__ = ["subset_cells", "save_rollout", "rollout_run"]
 
@@ -57,8 +60,12 @@ def save_rollout(
     model_name: str,
     format: str = "xdmf",
     gif: bool = True,
+    units: str = "",
 ) -> dict[str, str]:
-    """Write the files of one rollout (see the module docstring); returns label -> path."""
+    """Write the files of one rollout (see the module docstring); returns label -> path.
+
+    ``units``: the dataset's length unit (axis labels and colour bars of the pictures).
+    """
     from thrombojax.io.hdf5 import Simulation, write_dataset
 
     n_all = sim.positions.shape[1]
@@ -74,6 +81,7 @@ def save_rollout(
     dt = float(sim.attrs.get("dt", 1.0))
     stem = out_dir / result.name
     attrs = {"dt": dt, "source_simulation": sim.name, "model": model_name, "t0": result.t0,
+             "first_frame": result.t0 - 1,
              "n_nodes_full": n_all, "subset": bool(idx.size < n_all)}
     for key in ("rotation_deg", "seed", "reference_wall_time_s", "solver_wall_time_s"):
         if key in sim.attrs:
@@ -85,7 +93,8 @@ def save_rollout(
                                          [rollout_sim], name=f"{result.name} rollout",
                                          source=f"thrombojax rollout ({model_name})")}
     error = np.linalg.norm(pred - true, axis=-1)
-    common = dict(clot_cells=clot_cells, wall_cells=wall_cells, dt=dt, format=format)
+    common = dict(clot_cells=clot_cells, wall_cells=wall_cells, dt=dt, format=format,
+                  first_frame=result.t0 - 1)
     files["prediction"] = export_trajectory(stem.with_name(f"{result.name}_prediction"), pred,
                                             result.node_type, point_data={"error": error},
                                             **common)
@@ -103,7 +112,13 @@ def save_rollout(
         files["gif"] = animate_rollout(pred, true, result.node_type,
                                        stem.with_name(f"{result.name}_rollout.gif"),
                                        title=f"{model_name} / {result.name}",
-                                       first_frame=result.t0 - 1)
+                                       first_frame=result.t0 - 1, dt=dt, units=units)
+    const = phys(np.concatenate([result.initial, result.baseline]))
+    files["summary_png"] = plot_rollout_summary(
+        true, pred, const, result.node_type, stem.with_name(f"{result.name}_summary.png"),
+        dt=dt, units=units, first_frame=result.t0 - 1,
+        labels=(model_name, "constant velocity", "ground truth"),
+        title=f"{model_name} rollout on {result.name}")
     return {k: str(v) for k, v in files.items()}
 
 
@@ -160,7 +175,8 @@ def rollout_run(
                                  name=name, t0=max(skip, 1), n_steps=n_steps, n_nodes=n_nodes,
                                  seed=seed, wall_cells=sim.wall_cells)
         files = save_rollout(res, sim, trained.scaling, out_dir,
-                             model_name=trained.model.name, format=format, gif=gif)
+                             model_name=trained.model.name, format=format, gif=gif,
+                             units=str(ds.attrs.get("units", "")))
         report[name] = {"t0": res.t0, "n_steps": int(res.pred.shape[0]),
                         "n_nodes": int(res.node_index.size), "summary": res.summary,
                         "files": files, "node_index": res.node_index.tolist(),
@@ -172,7 +188,7 @@ def rollout_run(
                              s.get("mse@50", "n/a"), s["mse@full"], s["final_centroid_error"],
                              s["max_fraction_outside"]])
     result = {"model": trained.model.name, "run_dir": str(run_dir), "dataset": str(dataset_path),
-              "skip": skip, "seed": seed,
+              "skip": skip, "seed": seed, "units": str(ds.attrs.get("units", "")),
               "date": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
               "simulations": report}
     (out_dir / "rollout.json").write_text(json.dumps(result, indent=1))
@@ -180,6 +196,7 @@ def rollout_run(
                             "final centroid err", "max frac. outside"], rows)
     (out_dir / "rollout.md").write_text(
         "# Rollout errors (clot nodes, scaled coordinates; mean over the first h steps)\n\n"
-        + table)
+        f"Dataset length unit: {result['units'] or 'not recorded'} (pictures and ParaView "
+        "files are in this unit).\n\n" + table)
     result["table"] = table
     return result
