@@ -168,7 +168,8 @@ def _add_generate(sub) -> None:
     p.add_argument("--out", required=True, help="output .h5 file")
     p.add_argument("--sims", type=int, default=None, help="number of simulations (default: all)")
     p.add_argument("--seed", type=int, default=0, help="dataset seed (same seed, same arrays)")
-    p.add_argument("--plot", action="store_true", help="also write <out>.png with a few frames")
+    p.add_argument("--plot", action="store_true",
+                   help="also write a picture of the first simulation (bv.h5 -> bv.png)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=_run_generate)
 
@@ -181,6 +182,8 @@ def _run_generate(args) -> int:
         progress=not args.quiet,
     )  # fmt: skip
     print(f"wrote {out}")
+    if args.plot:
+        print(f"wrote {out.with_suffix('.png')}")
     return 0
 
 

@@ -173,7 +173,8 @@ def generate_dataset(
         out: target file.
         n_sims: number of simulations (default: the preset's).
         seed: dataset seed (the same seed gives the same arrays).
-        plot: also write ``<out>.png`` with a few frames of the first simulation.
+        plot: also write ``<out>.png`` with a few frames of the first simulation (the path
+            ``out.with_suffix(".png")``).
         progress: show a progress bar.
 
     Returns:
@@ -207,5 +208,5 @@ def generate_dataset(
     if plot:
         from thrombojax.sim.plot import plot_simulation
 
-        plot_simulation(first, out.with_suffix(".png"))
+        plot_simulation(first, out.with_suffix(".png"), units="vessel radius")  # the file's unit
     return out
