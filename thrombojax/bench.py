@@ -46,6 +46,7 @@ __all__ = [
     "environment",
     "bench",
     "bench_markdown",
+    "run_config_label",
 ]
 
 
@@ -244,19 +245,22 @@ def bench(
 
             trained = load_trained(runs[model_name])
             model, params, stats, weights = trained.model, trained.params, trained.stats, "trained"
+            config = run_config_label(runs[model_name], trained.config)
         else:
             model = create_model(model_name, get_config(model_name, tiny=tiny))
             stats = _unit_stats()
             if model_name not in inits:  # parameters do not depend on the node count
                 inits[model_name] = _init_params(model, x_prev, x_cur, node_type, seed)
             params = inits[model_name]
-            weights = "random init (" + ("tiny" if tiny else "study") + " config)"
+            weights = "random init"
+            config = "tiny config" if tiny else "study config"
         steps = case.n_steps if max_steps is None else min(case.n_steps, int(max_steps))
         t = time_rollout(model, params, stats, x_prev, x_cur, node_type, steps, repeats=repeats)
         per_step = t["per_step_s"]
         case_s = per_step * case.n_steps
         full_s = per_step * case.full_frames
-        row = {"model": model.name, "case": case.name, "n_nodes": int(len(node_type)),
+        row = {"model": model.name, "config": config, "case": case.name,
+               "n_nodes": int(len(node_type)),
                "n_steps": case.n_steps, "timed_steps": steps, "extrapolated": steps < case.n_steps,
                "weights": weights, "positions": source, **t, "case_rollout_s": case_s,
                "full_length_s": full_s, "abaqus_s": case.abaqus_s,
@@ -295,20 +299,30 @@ def _unit_stats():
     return identity_stats()
 
 
+def run_config_label(run_dir: str | pathlib.Path, config: dict) -> str:
+    """``"run <folder> (hidden=32, processor_size=5)"``: a trained run and its config overrides."""
+    overrides = dict(config.get("model_config") or {})
+    if config.get("tiny"):
+        overrides = {"tiny": True, **overrides}
+    detail = ", ".join(f"{k}={v}" for k, v in sorted(overrides.items()))
+    name = pathlib.Path(run_dir).name
+    return f"run {name} ({detail})" if detail else f"run {name} (study config)"
+
+
 def _speedup(x: float) -> str:
     return f"x{x:.0f}" if x >= 10 else f"x{x:.2g}"
 
 
 def bench_markdown(result: dict) -> str:
     """The benchmark as a markdown table with the environment beneath."""
-    rows = [[r["model"], r["case"], r["n_nodes"], f"{r['n_steps']}"
+    rows = [[r["model"], r.get("config", r["weights"]), r["case"], r["n_nodes"], f"{r['n_steps']}"
              + (f" (timed {r['timed_steps']})" if r["extrapolated"] else ""),
              r["compile_s"], r["rollout_s"], 1e3 * r["per_step_s"], r["full_length_s"],
              _speedup(r["speedup_vs_abaqus"]),
              _speedup(r["speedup_vs_solver"]) if "speedup_vs_solver" in r else "n/a",
              r["weights"]] for r in result["results"]]
     env = result["environment"]
-    table = markdown_table(["model", "case", "nodes", "steps", "compile s", "rollout s",
+    table = markdown_table(["model", "config", "case", "nodes", "steps", "compile s", "rollout s",
                             "ms/step", "full-length s", "vs Abaqus", "vs our solver",
                             "weights"], rows)
     return (f"# Rollout benchmark\n\n{table}\n{result['note']}\n\n"
