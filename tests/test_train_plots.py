@@ -49,3 +49,22 @@ def test_plot_losses_writes_a_png(tmp_path):
     png = plot_losses(path, tmp_path / "loss.png")
     assert Image.open(png).size[0] > 1000
     assert not list(tmp_path.glob(".*tmp"))
+
+
+def test_value_axis_is_linear_within_a_decade_and_log_with_1_2_5_labels_beyond():
+    from matplotlib.figure import Figure
+
+    from thrombojax.ticks import readable_value_axis, short_number
+
+    assert [short_number(v) for v in (2e-4, 0.5, 30.0, 1e5)] == ["2e-4", "0.5", "30", "1e5"]
+    ax = Figure().subplots()
+    ax.plot([1, 2], [2.1, 2.6])
+    readable_value_axis(ax, [2.1, 2.6])
+    assert ax.get_yscale() == "linear"
+    ax = Figure().subplots()
+    ax.plot([1, 2], [1e-4, 3e-3])
+    readable_value_axis(ax, [1e-4, 3e-3])
+    ax.figure.canvas.draw()
+    lo, hi = ax.get_ylim()
+    labels = [lab.get_text() for lab in ax.get_yticklabels() if lo <= lab.get_position()[1] <= hi]
+    assert ax.get_yscale() == "log" and {"1e-4", "2e-4", "5e-4", "1e-3", "2e-3"} <= set(labels)

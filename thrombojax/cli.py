@@ -342,7 +342,9 @@ def _add_export(sub) -> None:
     p.add_argument("--out", required=True, metavar="DIR", help="output folder")
     p.add_argument("--sim", action="append", metavar="NAME",
                    help="simulation to export (repeatable; default: all)")
-    p.add_argument("--format", default="xdmf", choices=("xdmf", "vtu"))
+    p.add_argument("--format", default="xdmf", choices=("xdmf", "vtu"),
+                   help="xdmf: .xdmf + .h5 (ParaView, VTK, meshio TimeSeriesReader); vtu: .pvd + "
+                        "one .vtu per frame (every VTK reader, meshio.read per file)")
     p.set_defaults(func=_run_export)
 
 

@@ -35,7 +35,7 @@ from thrombojax.evaluate import (
 )
 from thrombojax.io.export import export_trajectory
 from thrombojax.viz import animate_rollout, plot_error_curves, plot_rollout_metrics
-from thrombojax.viz_summary import plot_rollout_summary
+from thrombojax.viz_summary import default_summary_frames, plot_rollout_summary
 
 __all__ = ["subset_cells", "save_rollout", "rollout_run"]
 
@@ -117,6 +117,7 @@ def save_rollout(
     files["summary_png"] = plot_rollout_summary(
         true, pred, const, result.node_type, stem.with_name(f"{result.name}_summary.png"),
         dt=dt, units=units, first_frame=result.t0 - 1,
+        frames=1 + default_summary_frames(len(pred) - 1),  # from the given frame s_t0 on
         labels=(model_name, "constant velocity", "ground truth"),
         title=f"{model_name} rollout on {result.name}")
     return {k: str(v) for k, v in files.items()}

@@ -18,6 +18,7 @@ import numpy as np  # noqa: E402
 from matplotlib.animation import FuncAnimation, PillowWriter  # noqa: E402
 from matplotlib.ticker import MaxNLocator  # noqa: E402
 
+from thrombojax.ticks import readable_value_axis  # noqa: E402
 from thrombojax.types import NodeType  # noqa: E402
 
 __all__ = [
@@ -60,8 +61,8 @@ def _draw_curves(ax, curves, start, logy):
         values = np.asarray(values, np.float64)
         style = _BASELINE_STYLE if "constant" in label.lower() else {}
         ax.plot(np.arange(start, start + values.size), values, label=label, **style)
-    if logy and all(np.all(np.asarray(v) > 0) for v in curves.values()):
-        ax.set_yscale("log")
+    values = [np.asarray(v, np.float64).ravel() for v in curves.values()]
+    readable_value_axis(ax, np.concatenate(values) if values else [], log=logy)
     ax.xaxis.set_major_locator(MaxNLocator(integer=True))
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)

@@ -3,7 +3,8 @@
 Read from a run's ``metrics.jsonl`` (one JSON record per epoch, written by
 :mod:`thrombojax.train.loop`). The best epoch is the one the loop keeps as the ``best``
 checkpoint: the lowest validation MSE, or the lowest training MSE without a validation split.
-Log axes get labelled ticks even when the values span less than a decade.
+Value axes are logarithmic when the values span a decade or more, else linear, and always
+carry several labelled ticks (:mod:`thrombojax.ticks`).
 """
 
 from __future__ import annotations
@@ -13,6 +14,8 @@ import os
 import pathlib
 
 import numpy as np
+
+from thrombojax.ticks import readable_value_axis
 
 __all__ = ["read_metrics", "best_epoch", "loss_figure", "plot_losses"]
 
@@ -34,18 +37,6 @@ def best_epoch(records: list[dict]) -> tuple[int, float, str] | None:
     return int(epoch), float(value), key
 
 
-def _log_ticks(ax, values) -> None:
-    """Labelled ticks on a log y axis: decades, plus 2 and 5 (or all) within a short range."""
-    from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
-
-    values = np.asarray([v for v in values if np.isfinite(v) and v > 0])
-    decades = np.log10(values.max() / values.min()) if values.size else 3.0
-    subs = (1.0,) if decades > 3 else (1.0, 2.0, 5.0) if decades > 1 else np.arange(1.0, 10.0)
-    ax.yaxis.set_major_locator(LogLocator(base=10, subs=subs))
-    ax.yaxis.set_major_formatter(FuncFormatter(_short_number))
-    ax.yaxis.set_minor_formatter(NullFormatter())
-
-
 def loss_figure(records: list[dict]):
     """The figure of :func:`plot_losses` from per-epoch records (a matplotlib ``Figure``)."""
     from matplotlib.figure import Figure
@@ -64,8 +55,7 @@ def loss_figure(records: list[dict]):
                 val = np.maximum(val, 1e-30)
                 ax.plot(ep, val, label=split, color=colour, marker="." if len(ep) < 30 else "")
                 shown.extend(val)
-        ax.set_yscale("log")
-        _log_ticks(ax, shown)
+        readable_value_axis(ax, shown)
         ax.set_title(title, fontsize=10)
         ax.set_ylabel(key)
     axes[2].plot([r["epoch"] for r in records if "lr" in r],
@@ -87,16 +77,6 @@ def loss_figure(records: list[dict]):
         ax.legend(fontsize=8)
     fig.tight_layout()
     return fig
-
-
-def _short_number(value: float, _pos=None) -> str:
-    """``2e-4``, ``0.5``, ``3``: one significant digit, no padded exponent."""
-    if value <= 0:
-        return ""
-    if 1e-2 <= value < 1e3:
-        return f"{value:.1g}"
-    mant, exp = f"{value:.0e}".split("e")
-    return f"{mant}e{int(exp)}"
 
 
 def plot_losses(metrics_path: str | pathlib.Path, out_png: str | pathlib.Path) -> pathlib.Path:
