@@ -103,9 +103,12 @@ def setup_axes(ax, lim: np.ndarray, units: str | None, angles: tuple[float, floa
 
 
 def draw_wall(ax, wall_xyz: np.ndarray, label: str = "vessel wall"):
-    """Faint grey wall points, below everything else."""
-    return ax.scatter(*np.asarray(wall_xyz).T, zorder=1, label=label, axlim_clip=True,
-                      **WALL_STYLE)
+    """Faint grey wall points, below everything else (larger and darker when they are few)."""
+    xyz = np.asarray(wall_xyz).reshape(-1, 3)
+    style = dict(WALL_STYLE)
+    if len(xyz) < 1000:  # a coarse wall: make each point count
+        style |= {"s": 6.0, "alpha": 0.5}
+    return ax.scatter(*xyz.T, zorder=1, label=label, axlim_clip=True, **style)
 
 
 def draw_clot(ax, clot_xyz: np.ndarray, *, values=None, color="tab:blue", cmap="plasma",
