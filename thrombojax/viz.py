@@ -18,6 +18,7 @@ import numpy as np  # noqa: E402
 from matplotlib.animation import FuncAnimation, PillowWriter  # noqa: E402
 from matplotlib.ticker import MaxNLocator  # noqa: E402
 
+from thrombojax.errors import ConfigError  # noqa: E402
 from thrombojax.ticks import readable_value_axis  # noqa: E402
 from thrombojax.types import NodeType  # noqa: E402
 
@@ -122,7 +123,7 @@ def _per_node(values, shape, what: str) -> np.ndarray | None:
     if values.ndim == 3:
         values = np.linalg.norm(values, axis=-1)
     if values.shape != shape:
-        raise ValueError(f"animate_rollout: {what} has shape {values.shape}, expected {shape} "
+        raise ConfigError(f"animate_rollout: {what} has shape {values.shape}, expected {shape} "
                          "(+ optional vector components)")
     return values
 
@@ -177,7 +178,7 @@ def rollout_figure(
 
     pred, true = np.asarray(pred, np.float64), np.asarray(true, np.float64)
     if pred.shape != true.shape or pred.ndim != 3 or pred.shape[-1] != 3:
-        raise ValueError(f"animate_rollout: pred {pred.shape} and true {true.shape} must both "
+        raise ConfigError(f"animate_rollout: pred {pred.shape} and true {true.shape} must both "
                          "be [n_frames, n_nodes, 3]")
     clot = np.asarray(node_type) == NodeType.CLOT
     correction = _per_node(correction, pred.shape[:2], "correction")

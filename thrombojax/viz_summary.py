@@ -18,6 +18,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from thrombojax.errors import ConfigError  # noqa: E402
 from thrombojax.types import NodeType  # noqa: E402
 from thrombojax.viz_scene import (  # noqa: E402
     camera_angles,
@@ -36,7 +37,7 @@ __all__ = ["default_summary_frames", "plot_rollout_summary"]
 def default_summary_frames(n_frames: int, n: int = 4) -> np.ndarray:
     """``n`` frame indices spread over ``[0, n_frames)``, first and last included, unique."""
     if n_frames < 1:
-        raise ValueError("plot_rollout_summary: no frames")
+        raise ConfigError("plot_rollout_summary: no frames")
     return np.unique(np.linspace(0, n_frames - 1, min(n, n_frames)).round().astype(int))
 
 
@@ -76,12 +77,12 @@ def plot_rollout_summary(
     trajs = [np.asarray(a, np.float64) for a in (prediction, constant_velocity, truth)]
     if any(a.shape != trajs[2].shape for a in trajs) or trajs[2].ndim != 3 \
             or trajs[2].shape[-1] != 3:
-        raise ValueError("plot_rollout_summary: truth, prediction and constant_velocity must "
+        raise ConfigError("plot_rollout_summary: truth, prediction and constant_velocity must "
                          f"share one [T, N, 3] shape, got {[a.shape for a in trajs]}")
     n_frames = trajs[2].shape[0]
     frames = default_summary_frames(n_frames) if frames is None else np.asarray(frames, int)
     if frames.size == 0 or frames.min() < 0 or frames.max() >= n_frames:
-        raise ValueError(f"plot_rollout_summary: frames {frames.tolist()} outside [0, {n_frames})")
+        raise ConfigError(f"plot_rollout_summary: frames {frames.tolist()} outside [0, {n_frames})")
     clot = np.asarray(node_type) == NodeType.CLOT
     wall = wall_subset(node_type, max_wall_points, seed)
     lim = view_limits(trajs[2], node_type)
