@@ -95,3 +95,11 @@ def test_rollout_command_writes_everything(tiny_run):
     assert "Dataset length unit: vessel radius" in (out / "rollout.md").read_text()
     assert main(["rollout", "--run", str(run), "--dataset", str(data), "--out", str(out),
                  "--sim", "nope"]) == 2
+    # a dataset in another length unit is refused, not scaled silently
+    assert json.loads((run / "config.json").read_text())["units"] == "vessel radius"
+    from thrombojax.io.hdf5 import write_dataset
+
+    src = open_dataset(data)
+    mm = write_dataset(root / "mm.h5", [src[n] for n in src.names], name="mm", source="t",
+                       units="mm")
+    assert main(["rollout", "--run", str(run), "--dataset", str(mm), "--out", str(out)]) == 2

@@ -284,9 +284,11 @@ def evaluate_run(
     from thrombojax.io.hdf5 import open_dataset
     from thrombojax.models.registry import create_model, identity_stats
     from thrombojax.train.state import load_trained
+    from thrombojax.units import check_units
 
     trained = load_trained(run_dir, which=which)
     ds = open_dataset(dataset_path)
+    check_units(trained.config, ds, run_dir=run_dir, dataset_path=dataset_path)
     names = split_names(trained.config, ds.names, split)
     cv = create_model("constant_velocity")
     n_nodes = n_nodes or config_value(trained.config, "nodes_per_sample", default=None)

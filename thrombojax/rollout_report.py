@@ -34,6 +34,7 @@ from thrombojax.evaluate import (
     split_names,
 )
 from thrombojax.io.export import export_trajectory
+from thrombojax.units import check_units
 from thrombojax.viz import animate_rollout, plot_error_curves, plot_rollout_metrics
 from thrombojax.viz_summary import default_summary_frames, plot_rollout_summary
 
@@ -160,6 +161,7 @@ def rollout_run(
 
     trained = load_trained(run_dir, which=which)
     ds = open_dataset(dataset_path)
+    check_units(trained.config, ds, run_dir=run_dir, dataset_path=dataset_path)
     names = list(simulations) if simulations else split_names(trained.config, ds.names, split)
     missing = [n for n in names if n not in ds.names]
     if missing:

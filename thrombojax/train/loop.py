@@ -167,6 +167,7 @@ def train(
     run_config = {
         "model": model_name, "model_config": config_to_dict(model_cfg), "train": cfg.to_dict(),
         "dataset": str(pathlib.Path(dataset_path).resolve()), "stats": stats.to_dict(),
+        "units": str(ds.attrs.get("units", "")),
         "scaling": scaling.to_dict(), "batch_size": batch_size, "lr": lr, "budget": budget,
         "steps_per_epoch": steps_per_epoch, "total_steps": total_steps, "devices": mesh.size,
         "split": {"train": list(split.train), "val": list(split.val), "test": list(split.test)},
