@@ -129,7 +129,7 @@ def _per_node(values, shape, what: str) -> np.ndarray | None:
 
 
 def _colorbar(fig, mappable, ax, label: str) -> None:
-    bar = fig.colorbar(mappable, ax=ax, location="bottom", shrink=0.6, pad=0.0, fraction=0.04,
+    bar = fig.colorbar(mappable, ax=ax, location="bottom", shrink=0.6, pad=0.04, fraction=0.04,
                        aspect=30, extend="max")
     bar.set_label(label, fontsize=8)
     bar.ax.tick_params(labelsize=7)
@@ -249,7 +249,7 @@ def rollout_figure(
         text.set_text(_frame_text(title, first_frame + t, last, dt, time_unit) + extra)
         return list(arts.values())
 
-    fig.subplots_adjust(left=0.02, right=0.98, bottom=0.12, top=0.86, wspace=0.05)
+    fig.subplots_adjust(left=0.02, right=0.98, bottom=0.13, top=0.86, wspace=0.05)
     update(0)
     return fig, update, pred.shape[0]
 
