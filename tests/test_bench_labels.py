@@ -12,11 +12,18 @@ def _row(config, weights):
             "speedup_vs_abaqus": 450.0, "weights": weights}
 
 
-def test_run_config_label_names_the_overrides():
-    cfg = {"model_config": {"hidden": 32, "processor_size": 5}}
-    assert run_config_label("demo/run_mgn", cfg) == "run run_mgn (hidden=32, processor_size=5)"
-    assert run_config_label("r", {"model_config": {}}) == "run r (study config)"
-    assert run_config_label("r", {"tiny": True}) == "run r (tiny=True)"
+def test_run_config_label_names_what_differs_from_the_study_config():
+    from thrombojax.models.registry import config_to_dict, get_config
+
+    study = config_to_dict(get_config("mgn"))
+    cfg = {"model": "mgn", "model_config": {**study, "hidden": 32, "processor_size": 5},
+           "train": {"tiny": False}}
+    assert run_config_label("demo/run_mgn", cfg) == \
+        "run run_mgn (study config with hidden=32, processor_size=5)"
+    assert run_config_label("r", {"model": "mgn", "model_config": study}) == "run r (study config)"
+    tiny = config_to_dict(get_config("mgn", tiny=True))
+    assert run_config_label("r", {"model": "mgn", "model_config": tiny, "train": {"tiny": True}}) \
+        == "run r (tiny config)"
 
 
 def test_bench_table_has_a_config_column():

@@ -300,13 +300,21 @@ def _unit_stats():
 
 
 def run_config_label(run_dir: str | pathlib.Path, config: dict) -> str:
-    """``"run <folder> (hidden=32, processor_size=5)"``: a trained run and its config overrides."""
-    overrides = dict(config.get("model_config") or {})
-    if config.get("tiny"):
-        overrides = {"tiny": True, **overrides}
-    detail = ", ".join(f"{k}={v}" for k, v in sorted(overrides.items()))
+    """``"run <folder> (hidden=32, processor_size=5)"``: a trained run and how its model config
+    differs from the study's (or the tiny) config of its model."""
+    from thrombojax.models.registry import config_to_dict, get_config
+
+    tiny = bool((config.get("train") or {}).get("tiny", config.get("tiny", False)))
+    used = dict(config.get("model_config") or {})
+    try:
+        base = config_to_dict(get_config(config["model"], tiny=tiny))
+    except (KeyError, ConfigError):
+        base = {}
+    changed = {k: v for k, v in used.items() if base.get(k, object()) != v}
+    detail = ", ".join(f"{k}={v}" for k, v in sorted(changed.items()))
+    kind = "tiny" if tiny else "study"
     name = pathlib.Path(run_dir).name
-    return f"run {name} ({detail})" if detail else f"run {name} (study config)"
+    return f"run {name} ({kind} config" + (f" with {detail})" if detail else ")")
 
 
 def _speedup(x: float) -> str:
