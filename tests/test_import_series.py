@@ -158,3 +158,26 @@ def test_series_dt_checks_even_spacing():
     assert series_dt(np.array([0.0]), None, "f", "s") is None
     with pytest.raises(DatasetError, match="not evenly spaced"):
         series_dt(np.array([0.0, 0.5, 1.5]), None, "f", "s")
+
+
+def test_xdmf_with_vertex_cells_and_meshio_time_series_files(tmp_path, monkeypatch):
+    src = make_simulation("v", n_frames=3)
+    # no wall cells: the wall nodes become XDMF polyvertex cells (which meshio misreads)
+    path = export_trajectory(tmp_path / "v", src.positions, src.node_type,
+                             clot_cells=src.clot_cells, dt=0.1)
+    sim = read_mesh_series(path)
+    np.testing.assert_array_equal(sim.positions, src.positions)
+    np.testing.assert_array_equal(sim.node_type, src.node_type)
+    assert sim.wall_cells is None and sim.attrs["dt"] == pytest.approx(0.1)
+    # meshio's writer: one mesh grid outside the collection, steps include it (fixed points)
+    monkeypatch.chdir(tmp_path)  # meshio writes the .h5 into the working directory
+    fixed = tmp_path / "fixed.xdmf"
+    with meshio.xdmf.TimeSeriesWriter(fixed) as writer:
+        writer.write_points_cells(src.positions[0].astype(np.float64),
+                                  [("tetra", src.clot_cells), ("triangle", src.wall_cells)])
+        for t in (0.0, 0.5, 1.0):
+            writer.write_data(t, point_data={"kind": src.node_type.astype(np.int32)})
+    sim = read_mesh_series(fixed, node_type_array="kind")
+    assert sim.name == "fixed" and sim.attrs["dt"] == pytest.approx(0.5)
+    np.testing.assert_array_equal(sim.positions, np.repeat(src.positions[:1], 3, axis=0))
+    np.testing.assert_array_equal(sim.wall_cells, src.wall_cells)

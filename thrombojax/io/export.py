@@ -19,7 +19,8 @@ the ``.pvd`` natively). ``meshio.read`` reads one mesh, not a time series: it st
 collection ("Unknown section 'Grid'"), so with meshio either read the VTU files of the ``"vtu"``
 series one by one (the universally readable option), or use ``meshio.xdmf.TimeSeriesReader``:
 it returns the points of the first frame only, so every XDMF frame also carries the
-``position`` point array (the frame's points, no extra storage). ``thrombojax import vtu``
+``position`` point array (the frame's points, no extra storage); it misreads vertex cells, so
+it reads only files whose nodes are all in tetrahedra or triangles. ``thrombojax import vtu``
 reads both back (:mod:`thrombojax.io.series_file`).
 
 Cells: clot tetrahedra and wall triangles when the simulation has them (and every index is

@@ -176,8 +176,8 @@ def read_mesh_series(
         times, files = read_pvd(source, name)
         first = _read_mesh(files[0], name)
     elif is_series_file(source):
-        series = read_xdmf_series(source, name)
-        times, files, first, positions = series.times, [Path(source)], series.mesh, series.positions
+        first, positions, times = read_xdmf_series(source, name)
+        files = [Path(source)]
     else:
         times, files = None, list_frame_files(source, MESH_SUFFIXES)
         first = _read_mesh(files[0], name)

@@ -16,15 +16,13 @@ from __future__ import annotations
 
 import os
 import xml.etree.ElementTree as ET
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from thrombojax.io.schema import simulation_error
 
-__all__ = ["SERIES_SUFFIXES", "XdmfSeries", "is_series_file", "read_pvd", "read_xdmf_series",
-           "series_dt"]
+__all__ = ["SERIES_SUFFIXES", "is_series_file", "read_pvd", "read_xdmf_series", "series_dt"]
 
 SERIES_SUFFIXES = (".pvd", ".xdmf", ".xmf")
 
@@ -91,66 +89,25 @@ def read_pvd(path: str | os.PathLike, name: str) -> tuple[np.ndarray, list[Path]
     return times, [f for _, _, f in entries]
 
 
-@dataclass(frozen=True)
-class XdmfSeries:
-    """An XDMF time series: the first step's mesh, every step's points and the times."""
+def read_xdmf_series(path: str | os.PathLike, name: str):
+    """Read an XDMF temporal collection (:mod:`thrombojax.io.xdmf_read`).
 
-    mesh: object  # meshio.Mesh of the first step (points, cells, point data)
-    positions: np.ndarray  # [T, N, 3] float32
-    times: np.ndarray  # [T] float64
-
-
-def _data_item(item: ET.Element, folder: Path, path: Path, name: str) -> np.ndarray:
-    """An XDMF ``DataItem`` in XML or HDF format (``file.h5:/dataset``)."""
-    dims = [int(d) for d in item.get("Dimensions", "").split()]
-    fmt = item.get("Format", "XML")
-    text = (item.text or "").strip()
-    if fmt == "XML":
-        return np.array(text.split(), np.float64).reshape(dims)
-    if fmt == "HDF":
-        import h5py
-
-        file, _, inner = text.partition(":")
-        try:
-            with h5py.File(folder / file, "r") as f:
-                return np.asarray(f[inner][()]).reshape(dims)
-        except (OSError, KeyError) as err:
-            raise simulation_error(path, name, "positions", f"cannot read {text}: {err}") from err
-    raise simulation_error(path, name, "positions", f"unsupported XDMF data format '{fmt}'")
-
-
-def read_xdmf_series(path: str | os.PathLike, name: str) -> XdmfSeries:
-    """Read an XDMF temporal collection (module docstring)."""
+    Returns:
+        ``(mesh, positions, times)``: a ``meshio.Mesh`` of the first step (its points, cells
+        and node arrays), ``[T, N, 3]`` float32 points of every step, ``[T]`` times.
+    """
     import meshio
 
+    from thrombojax.io.xdmf_read import read_xdmf_temporal
+
     path = Path(path)
-    grids = list(_temporal_grid(_xml_root(path, name)) or [])
-    try:
-        with meshio.xdmf.TimeSeriesReader(str(path)) as reader:
-            points, cells = reader.read_points_cells()
-            steps = [reader.read_data(k) for k in range(reader.num_steps)]
-    except Exception as err:  # meshio parsers raise many types: all mean a bad input file
-        msg = str(err).strip().splitlines()[0] if str(err).strip() else type(err).__name__
-        raise simulation_error(path, name, "mesh", f"cannot read: {msg}") from err
-    if not steps:
-        raise simulation_error(path, name, "frames", "the temporal collection is empty")
-    points = np.asarray(points, np.float64)
-    positions = np.empty((len(steps), *points.shape), np.float32)
-    for k, (_, point_data, _) in enumerate(steps):
-        geometry = grids[k].find("Geometry") if k < len(grids) else None
-        if "position" in point_data:
-            frame = np.asarray(point_data["position"])
-        elif geometry is not None and geometry.find("DataItem") is not None:
-            frame = _data_item(geometry.find("DataItem"), path.parent, path, name)
-        else:
-            frame = points
-        if frame.shape != points.shape:
-            raise simulation_error(path, name, "positions", f"step {k} has points of shape "
-                                   f"{frame.shape}, the first step {points.shape}")
-        positions[k] = frame
-    first = {k: v for k, v in steps[0][1].items() if k != "position"}
-    mesh = meshio.Mesh(points, cells, point_data=first)
-    return XdmfSeries(mesh, positions, np.array([t for t, _, _ in steps], np.float64))
+    root = _xml_root(path, name)
+    collection, domain = _temporal_grid(root), root.find("Domain")
+    if collection is None or domain is None:
+        raise simulation_error(path, name, "mesh", "no temporal collection in a Domain")
+    series = read_xdmf_temporal(path, collection, domain, name)
+    mesh = meshio.Mesh(series.positions[0], series.cells, point_data=series.point_data)
+    return mesh, series.positions, series.times
 
 
 def series_dt(times: np.ndarray, dt: float | None, path, name: str) -> float | None:
