@@ -1,8 +1,11 @@
 """Matplotlib figures: rollout error curves and prediction-beside-truth animations.
 
-Every function takes plain numpy arrays, writes one file and returns its path; none keeps
-state. 3-D views use equal axis scaling (one cube of limits shared by both panels, box
-aspect 1:1:1), so shapes are not distorted and the two panels compare directly.
+Every function takes plain numpy arrays, writes one file (atomically) and returns its path; none
+keeps state. 3-D views (:mod:`thrombojax.viz_scene`) use one view box for every panel, set from
+the vessel and the ground truth (never the prediction), equal axis scaling, one camera, the clot
+drawn above the wall, axis labels with units and the frame's time in the title; the predicted
+clot is coloured by its distance to the truth. The summary figure (surrogate, constant velocity,
+truth at a few frames) is :func:`thrombojax.viz_summary.plot_rollout_summary`.
 """
 
 from __future__ import annotations
