@@ -181,3 +181,18 @@ def test_xdmf_with_vertex_cells_and_meshio_time_series_files(tmp_path, monkeypat
     assert sim.name == "fixed" and sim.attrs["dt"] == pytest.approx(0.5)
     np.testing.assert_array_equal(sim.positions, np.repeat(src.positions[:1], 3, axis=0))
     np.testing.assert_array_equal(sim.wall_cells, src.wall_cells)
+
+
+def test_vtu_series_with_quad_wall_cells(tmp_path):
+    src = make_simulation("q", n_frames=2)
+    walls = src.wall_cells
+    quads = np.array([[t1[0], t1[1], t2[1], t1[2]] for t1, t2 in zip(walls[::2], walls[1::2],
+                                                                       strict=True)])
+    folder = tmp_path / "q"
+    folder.mkdir()
+    for t, frame in enumerate(src.positions):
+        meshio.write(folder / f"f{t}.vtu",
+                     meshio.Mesh(frame, [("tetra", src.clot_cells), ("quad", quads)]))
+    sim = read_mesh_series(folder)
+    np.testing.assert_array_equal(sim.node_type, src.node_type)
+    assert sim.wall_cells.shape == (8, 3)

@@ -72,7 +72,7 @@ def node_type_from_cells(
     path: Any = "<memory>",
     name: str = "?",
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Node types from cell blocks: tetra nodes are clot, other triangle nodes vessel wall.
+    """Node types from cell blocks: tetra nodes are clot, other triangle (or quad) nodes vessel.
 
     Args:
         n_nodes: N.
@@ -82,6 +82,8 @@ def node_type_from_cells(
     """
     tets = [np.asarray(d) for t, d in cells if t in _TETRA]
     tris = [np.asarray(d) for t, d in cells if t == "triangle"]
+    quads = [np.asarray(d) for t, d in cells if t == "quad"]  # a quad wall: two triangles each
+    tris += [q[:, idx] for q in quads for idx in ([0, 1, 2], [0, 2, 3])]
     tets = np.concatenate(tets).astype(np.int32) if tets else np.zeros((0, 4), np.int32)
     tris = np.concatenate(tris).astype(np.int32) if tris else np.zeros((0, 3), np.int32)
     if not tets.size:
