@@ -101,8 +101,9 @@ def run_demo(out: str | pathlib.Path, config: DemoConfig = DemoConfig(), *,
     if config.n_frames is not None:
         preset = dataclasses.replace(preset, n_frames=config.n_frames)
     data = generate_dataset(preset, out / "data" / f"{config.preset}.h5", n_sims=config.n_sims,
-                            seed=0, progress=progress)
+                            seed=0, plot=True, progress=progress)
     paths["dataset"] = pathlib.Path(data)
+    paths["dataset_png"] = pathlib.Path(data).with_suffix(".png")
     print(f"   {time.perf_counter() - t:.0f} s")
 
     t = _stage(f"2/6 train a small MeshGraphNet (~{config.train_minutes:g} min)")
@@ -127,7 +128,8 @@ def run_demo(out: str | pathlib.Path, config: DemoConfig = DemoConfig(), *,
     ro = rollout_run(run, data, out / "rollout", split="test")
     print(ro["table"], end="")
     for name, rep in ro["simulations"].items():
-        for key in ("gif", "error_png", "metrics_png", "prediction", "trajectory"):
+        for key in ("gif", "summary_png", "error_png", "metrics_png", "prediction",
+                    "trajectory"):
             paths[f"rollout_{key}"] = pathlib.Path(rep["files"][key])
         paths["rollout_table"] = out / "rollout" / "rollout.md"
         test_name = name

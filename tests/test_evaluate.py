@@ -35,6 +35,12 @@ def tiny_run(tmp_path_factory):
     return data, run, root
 
 
+def _times(path, tag, key):
+    import xml.etree.ElementTree as ET
+
+    return [float(e.get(key)) for e in ET.parse(path).getroot().iter(tag)]
+
+
 def test_evaluate_command_writes_json_and_table(tiny_run, capsys):
     data, run, root = tiny_run
     assert main(["evaluate", "--run", str(run), "--dataset", str(data), "--out",
@@ -77,5 +83,23 @@ def test_rollout_command_writes_everything(tiny_run):
     assert main(["export", str(out / "sim_0_rollout.h5"), "--out", str(root / "ex"),
                  "--format", "vtu"]) == 0
     assert (root / "ex" / "sim_0_rollout.pvd").is_file()
+    # physical times frame * dt everywhere: the rollout starts at frame t0 - 1 = 4
+    assert _times(root / "ex" / "sim_0_rollout.pvd", "DataSet", "timestep") == \
+        pytest.approx((4 + np.arange(8)) * 0.01)
+    assert _times(out / "sim_0_prediction.xdmf", "Time", "Value") == \
+        pytest.approx((4 + np.arange(8)) * 0.01)
+    assert main(["export", str(data), "--out", str(root / "ex"), "--sim", "sim_0"]) == 0
+    assert _times(root / "ex" / "sim_0.xdmf", "Time", "Value") == \
+        pytest.approx(np.arange(12) * 0.01)
+    assert Image.open(out / "sim_0_summary.png").size[0] > 600
+    assert "Dataset length unit: vessel radius" in (out / "rollout.md").read_text()
     assert main(["rollout", "--run", str(run), "--dataset", str(data), "--out", str(out),
                  "--sim", "nope"]) == 2
+    # a dataset in another length unit is refused, not scaled silently
+    assert json.loads((run / "config.json").read_text())["units"] == "vessel radius"
+    from thrombojax.io.hdf5 import write_dataset
+
+    src = open_dataset(data)
+    mm = write_dataset(root / "mm.h5", [src[n] for n in src.names], name="mm", source="t",
+                       units="mm")
+    assert main(["rollout", "--run", str(run), "--dataset", str(mm), "--out", str(out)]) == 2

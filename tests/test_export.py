@@ -32,7 +32,7 @@ def test_xdmf_series_has_moving_geometry_and_node_types(tmp_path):
     grids = ET.parse(path).getroot().findall("./Domain/Grid/Grid")
     assert [float(g.find("Time").get("Value")) for g in grids] == pytest.approx([0, 0.1, 0.2])
     names = {a.get("Name") for a in grids[0].findall("Attribute")}
-    assert names == {"node_type", "displacement", "error"}
+    assert names == {"position", "node_type", "displacement", "error"}
     assert grids[1].find("Topology").get("NumberOfElements") == "3"  # 1 tet + 2 vertex cells
     with h5py.File(tmp_path / "run.xdmf.h5") as f:
         ref = grids[2].find("Geometry/DataItem").text.split(":")[1]

@@ -44,7 +44,7 @@ def test_same_seed_same_arrays_and_vmap_equals_single(bend_file, tmp_path):
     np.testing.assert_allclose(single.positions, a["bendvessel-tiny_001"].positions, atol=5e-3)
 
 
-def test_other_seed_differs(bend_file, tmp_path):
+def test_other_seed_differs(bend_file, tmp_path, capsys):
     out = tmp_path / "cli.h5"
     assert (
         main(
@@ -58,10 +58,12 @@ def test_other_seed_differs(bend_file, tmp_path):
                 "--seed",
                 "4",
                 "--quiet",
+                "--plot",
             ]
         )
         == 0
     )
+    assert f"wrote {out.with_suffix('.png')}" in capsys.readouterr().out
     other = open_dataset(out)["bendvessel-tiny_000"]
     ref = open_dataset(bend_file)["bendvessel-tiny_000"]
     assert other.attrs["oversize"] != ref.attrs["oversize"]

@@ -76,16 +76,18 @@ def test_many_series_into_one_file_and_cli(tmp_path, capsys):
     assert ds.names == ["r0", "r1"] and ds.attrs["source"] == "meshio import"
     assert ds["r1"].attrs["dt"] == 0.5
     assert_same(ds["r1"], sims[1])
-    argv = ["import", "vtu", *folders, "--out", str(tmp_path / "b.h5"), "--quiet",
+    argv = ["import", "vtu", *folders, "--out", str(tmp_path / "b.h5"), "--quiet", "--units", "mm",
             "--name", "x", "--name", "y", "--name", "z", "--reference-time", "180"]
     assert main(argv) == 0
     ds = open_dataset(tmp_path / "b.h5")
     assert ds.names == ["x", "y", "z"] and ds["z"].attrs["reference_wall_time_s"] == 180.0
+    assert ds.attrs["units"] == "mm"
     assert_same(ds["z"], sims[2])
     assert main(argv) == 2  # exists, no --force
     assert "already exists" in capsys.readouterr().err
     assert main([*argv, "--force"]) == 0
-    one_name = ["import", "vtu", *folders, "--out", str(tmp_path / "c.h5"), "--name", "n"]
+    one_name = ["import", "vtu", *folders, "--out", str(tmp_path / "c.h5"), "--name", "n",
+                "--units", "mm"]
     assert main(one_name) == 2 and not (tmp_path / "c.h5").exists()
     assert "1 names given for 3 simulations" in capsys.readouterr().err
 
@@ -172,7 +174,7 @@ def test_abaqus_cli(tmp_path, capsys):
     np.save(tmp_path / "run7.npy", src.positions)
     out = tmp_path / "d.h5"
     argv = ["import", "abaqus", "--inp", str(inp), "--frames", str(tmp_path / "run7.npy"),
-            "--out", str(out), "--dt", "0.2", "--quiet"]
+            "--out", str(out), "--dt", "0.2", "--quiet", "--units", "mm"]
     assert main(argv) == 0
     assert open_dataset(out).names == ["run7"]
     assert main(["info", str(out)]) == 0
@@ -214,7 +216,8 @@ def test_bad_mesh_series(tmp_path, capsys):
         read_mesh_series(tmp_path / "corrupt")
     out = tmp_path / "x.h5"
     for source in (ragged, ragged / "frame_0.vtu", tmp_path / "missing"):
-        assert main(["import", "vtu", str(source), "--out", str(out), "--quiet"]) == 2
+        assert main(["import", "vtu", str(source), "--out", str(out), "--quiet",
+                     "--units", "mm"]) == 2
         err = capsys.readouterr().err
         assert err.startswith("thrombojax import: error: ") and err.count("\n") == 1
         assert "Traceback" not in err and not out.exists()

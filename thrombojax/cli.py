@@ -65,7 +65,9 @@ def _import_common(p) -> None:
                    "per sim")
     p.add_argument("--reference-time", type=_POS_FLOAT, metavar="SECONDS",
                    help="recorded solver wall time per simulation (e.g. Abaqus), for speed-ups")
-    p.add_argument("--units", default="vessel radius", help="unit of the coordinates")
+    p.add_argument("--units", required=True, metavar="UNIT",
+                   help="length unit of the coordinates, e.g. mm, m or 'vessel radius' "
+                        "(stored in the dataset, shown in every report and picture)")
     _output_flags(p, "overwrite FILE if it exists")
 
 
@@ -83,16 +85,20 @@ def _add_import(sub) -> None:
     m = kinds.add_parser(
         "vtu",
         aliases=["mesh"],
-        help="one simulation per folder / quoted glob of VTU, VTK or XDMF frames",
+        help="one simulation per folder / quoted glob of VTU, VTK or XDMF frames, or per "
+             ".pvd / XDMF time-series file",
         description=(
             "Each SOURCE is one simulation: a folder of frame files (.vtu/.vtk/.xdmf/.xmf, one "
-            "per frame, same points, natural file-name order) or a quoted glob like "
-            "'run1/*.vtu'. Node type: from the point-data array --node-type-array (default: "
-            "'node_type' when present, values 0 vessel / 1 clot), else from the cells of the "
-            "first frame (tetra = clot, triangle = vessel wall)."
+            "per frame, same points, natural file-name order), a quoted glob like "
+            "'run1/*.vtu', or one time-series file (.pvd, or .xdmf with a temporal collection, "
+            "as 'thrombojax export' writes them; their times give --dt). Names: the folder's "
+            "name or the file's stem. Node type: from the point-data array "
+            "--node-type-array (default: 'node_type' when present, values 0 vessel / 1 clot), "
+            "else from the cells of the first frame (tetra = clot, triangle = vessel wall)."
         ),
     )
-    m.add_argument("sources", nargs="+", metavar="SOURCE", help="frames folder or quoted glob")
+    m.add_argument("sources", nargs="+", metavar="SOURCE",
+                   help="frames folder, quoted glob, or .pvd / .xdmf series file")
     m.add_argument("--node-type-array", metavar="ARRAY",
                    help="point-data array with the node type (then required in every source)")
     _import_common(m)
@@ -105,16 +111,24 @@ def _add_import(sub) -> None:
             "([N, 3]) or frame_0000.csv files (rows 'x,y,z' in .inp node order, or "
             "'label,x,y,z' in any order; optional header). The .inp must be flat (one *Node "
             "block). Clot / vessel nodes come from element or node sets: --clot-set / "
-            "--vessel-set, by default sets named like *CLOT* / *VESSEL*, *WALL*, *ARTERY*, "
-            "else element types (C3D4 tetra = clot, triangles = vessel wall)."
+            "--vessel-set (each repeatable; --clot-set alone makes every other node vessel), "
+            "by default sets named like *CLOT* / *VESSEL*, *WALL*, *ARTERY*, else element "
+            "types (tetrahedra C3D4/C3D10 = clot; triangle and quad shell, surface, membrane "
+            "or rigid elements S3, M3D3, SFM3D3, R3D3, S4R, M3D4, SFM3D4, R3D4 ... = vessel "
+            "wall). Nodes in no element (a rigid body's reference node) are dropped; the "
+            "frames may list them or not. Messages name nodes by their Abaqus label. Names: "
+            "the --frames folder's name or file stem."
         ),
     )
     a.add_argument("--inp", action="append", required=True, metavar="FILE",
                    help=".inp mesh; once for all simulations or once per --frames")
     a.add_argument("--frames", action="append", required=True, metavar="PATH",
                    help="coordinates of one simulation (.npy or folder); repeat per simulation")
-    a.add_argument("--clot-set", action="append", metavar="SET", help="clot element/node set")
-    a.add_argument("--vessel-set", action="append", metavar="SET", help="vessel element/node set")
+    a.add_argument("--clot-set", action="append", metavar="SET",
+                   help="clot element/node set; repeat for several sets")
+    a.add_argument("--vessel-set", action="append", metavar="SET",
+                   help="vessel element/node set; repeat for several sets (default with "
+                        "--clot-set: all other nodes)")
     _import_common(a)
     a.set_defaults(func=_run_import_abaqus)
 
@@ -133,7 +147,7 @@ def _run_import_mesh(args) -> int:
 
 
 def _run_import_abaqus(args) -> int:
-    from thrombojax.io.meshio_import import import_abaqus
+    from thrombojax.io.abaqus import import_abaqus
 
     out = import_abaqus(
         args.inp, args.frames, args.out, names=args.names, dataset_name=args.dataset_name,
@@ -167,8 +181,8 @@ def _add_generate(sub) -> None:
     p.add_argument("--sims", type=_POS_INT, default=None,
                    help="number of simulations (default: all)")
     p.add_argument("--seed", type=_NN_INT, default=0, help="dataset seed (same seed, same arrays)")
-    p.add_argument("--plot", action="store_true", help="also write <out stem>.png with a few "
-                   "frames")
+    p.add_argument("--plot", action="store_true",
+                   help="also write a picture of the first simulation (bv.h5 -> bv.png)")
     _output_flags(p, "replace an existing output file")
     p.set_defaults(func=_run_generate)
 
@@ -181,6 +195,8 @@ def _run_generate(args) -> int:
         progress=not args.quiet, force=args.force,
     )  # fmt: skip
     print(f"wrote {out}")
+    if args.plot:
+        print(f"wrote {out.with_suffix('.png')}")
     return 0
 
 
@@ -359,7 +375,9 @@ def _add_export(sub) -> None:
     p.add_argument("--out", required=True, metavar="DIR", help="output folder")
     p.add_argument("--sim", action="append", metavar="NAME",
                    help="simulation to export (repeatable; default: all)")
-    p.add_argument("--format", default="xdmf", choices=("xdmf", "vtu"))
+    p.add_argument("--format", default="xdmf", choices=("xdmf", "vtu"),
+                   help="xdmf: .xdmf + .h5 (ParaView, VTK, meshio TimeSeriesReader); vtu: .pvd + "
+                        "one .vtu per frame (every VTK reader, meshio.read per file)")
     _output_flags(p, "replace existing exported series")
     p.set_defaults(func=_run_export)
 

@@ -37,7 +37,13 @@ from thrombojax.eval.single_step import scaled_simulation
 from thrombojax.eval.tables import environment, markdown_table
 from thrombojax.io.hdf5 import open_dataset
 from thrombojax.io.outputs import atomic_write_text, check_targets
-from thrombojax.models.registry import Surrogate, create_model, get_config, identity_stats
+from thrombojax.models.registry import (
+    Surrogate,
+    config_to_dict,
+    create_model,
+    get_config,
+    identity_stats,
+)
 from thrombojax.sim.generate import simulate
 from thrombojax.sim.presets import get_preset
 from thrombojax.simulator.rollout import as_step, rollout_jit
@@ -53,6 +59,7 @@ __all__ = [
     "time_rollout",
     "bench",
     "bench_markdown",
+    "run_config_label",
 ]
 
 
@@ -241,6 +248,7 @@ def bench(
         if model_name in runs:
             trained = load_trained(runs[model_name])
             model, params, stats, weights = trained.model, trained.params, trained.stats, "trained"
+            config = run_config_label(runs[model_name], trained.config)
         else:
             model = create_model(model_name, get_config(model_name, tiny=tiny))
             stats = identity_stats()
@@ -248,13 +256,15 @@ def bench(
                 inits[model_name] = make_step(model).init(
                     jax.random.key(seed), x_prev, x_cur, node_type, np.ones(len(node_type), bool))
             params = inits[model_name]
-            weights = "random init (" + ("tiny" if tiny else "study") + " config)"
+            weights = "random init"
+            config = "tiny config" if tiny else "study config"
         steps = case.n_steps if max_steps is None else min(case.n_steps, int(max_steps))
         t = time_rollout(model, params, stats, x_prev, x_cur, node_type, steps, repeats=repeats)
         per_step = t["per_step_s"]
         case_s = per_step * case.n_steps
         full_s = per_step * case.full_frames
-        row = {"model": model.name, "case": case.name, "n_nodes": int(len(node_type)),
+        row = {"model": model.name, "config": config, "case": case.name,
+               "n_nodes": int(len(node_type)),
                "n_steps": case.n_steps, "timed_steps": steps, "extrapolated": steps < case.n_steps,
                "weights": weights, "positions": source, **t, "case_rollout_s": case_s,
                "full_length_s": full_s, "abaqus_s": case.abaqus_s,
@@ -276,20 +286,37 @@ def bench(
     return out
 
 
+def run_config_label(run_dir: str | pathlib.Path, config: dict) -> str:
+    """``"run <folder> (hidden=32, processor_size=5)"``: a trained run and how its model config
+    differs from the study's (or the tiny) config of its model."""
+    train = config.get("train") or {}
+    tiny = bool(train.get("tiny", False))
+    used = dict(train.get("model_config") or {})
+    try:
+        base = config_to_dict(get_config(config["model"], tiny=tiny))
+    except (KeyError, ConfigError):
+        base = {}
+    changed = {k: v for k, v in used.items() if base.get(k, object()) != v}
+    detail = ", ".join(f"{k}={v}" for k, v in sorted(changed.items()))
+    kind = "tiny" if tiny else "study"
+    name = pathlib.Path(run_dir).name
+    return f"run {name} ({kind} config" + (f" with {detail})" if detail else ")")
+
+
 def _speedup(x: float) -> str:
     return f"x{x:.0f}" if x >= 10 else f"x{x:.2g}"
 
 
 def bench_markdown(result: dict) -> str:
     """The benchmark as a markdown table with the environment beneath."""
-    rows = [[r["model"], r["case"], r["n_nodes"], f"{r['n_steps']}"
+    rows = [[r["model"], r.get("config", r["weights"]), r["case"], r["n_nodes"], f"{r['n_steps']}"
              + (f" (timed {r['timed_steps']})" if r["extrapolated"] else ""),
              r["compile_s"], r["rollout_s"], 1e3 * r["per_step_s"], r["full_length_s"],
              _speedup(r["speedup_vs_abaqus"]),
              _speedup(r["speedup_vs_solver"]) if "speedup_vs_solver" in r else "n/a",
              r["weights"]] for r in result["results"]]
     env = result["environment"]
-    table = markdown_table(["model", "case", "nodes", "steps", "compile s", "rollout s",
+    table = markdown_table(["model", "config", "case", "nodes", "steps", "compile s", "rollout s",
                             "ms/step", "full-length s", "vs Abaqus", "vs our solver",
                             "weights"], rows)
     return (f"# Rollout benchmark\n\n{table}\n{result['note']}\n\n"

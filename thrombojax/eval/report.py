@@ -6,8 +6,10 @@ For each chosen simulation, into ``out_dir``:
   s_{t0-1}, s_{t0}, then the predictions), so every dataset tool (``thrombojax info``,
   ``thrombojax export``) reads it;
 - ``<sim>_prediction.xdmf`` / ``<sim>_truth.xdmf`` (+ ``.xdmf.h5``): ParaView time series with
-  ``node_type`` and the per-node ``error`` (distance to the truth) as point data;
-- ``<sim>_rollout.gif``: prediction beside ground truth, equal axes;
+  ``node_type`` and the per-node ``error`` (distance to the truth) as point data, at the
+  physical times ``frame * dt`` (so they play in step with an exported dataset simulation);
+- ``<sim>_rollout.gif``: prediction beside ground truth, equal axes, clot coloured by error;
+- ``<sim>_summary.png``: the model, constant velocity and the truth side by side at 4 frames;
 - ``<sim>_error.png`` (MSE per step) and ``<sim>_metrics.png`` (MSE, centroid error, fraction
   outside the vessel), always with the constant-velocity baseline;
 - ``rollout.json`` (all metrics and curves) and ``rollout.md`` (horizon table).
@@ -31,12 +33,14 @@ from thrombojax.data.scaling import Scaling
 from thrombojax.eval.plots import animate_rollout, plot_error_curves, plot_rollout_metrics
 from thrombojax.eval.rollouts import RolloutResult, rollout_simulation
 from thrombojax.eval.single_step import scaled_simulation, split_names
+from thrombojax.eval.summary_plot import default_summary_frames, plot_rollout_summary
 from thrombojax.eval.tables import markdown_table
 from thrombojax.io.export import export_trajectory
 from thrombojax.io.hdf5 import Simulation, open_dataset, write_dataset
 from thrombojax.io.outputs import atomic_path, atomic_write_text, check_targets, safe_stems
 from thrombojax.train.guards import check_finite, check_in_box, check_split_names
 from thrombojax.train.state import load_trained
+from thrombojax.units import check_units
 
 __all__ = ["subset_cells", "rollout_files", "save_rollout", "rollout_run"]
 
@@ -44,7 +48,8 @@ __all__ = ["subset_cells", "rollout_files", "save_rollout", "rollout_run"]
 def rollout_files(out_dir: pathlib.Path, stem: str, format: str, gif: bool) -> list[pathlib.Path]:
     """Every path :func:`save_rollout` writes for one simulation file stem."""
     series = (".xdmf", ".xdmf.h5") if format == "xdmf" else (".pvd", "")
-    names = [f"{stem}_rollout.h5", f"{stem}_error.png", f"{stem}_metrics.png"]
+    names = [f"{stem}_rollout.h5", f"{stem}_error.png", f"{stem}_metrics.png",
+             f"{stem}_summary.png"]
     names += [f"{stem}_{kind}{ext}" for kind in ("prediction", "truth") for ext in series]
     return [out_dir / n for n in names + ([f"{stem}_rollout.gif"] if gif else [])]
 
@@ -70,8 +75,11 @@ def save_rollout(
     format: str = "xdmf",
     gif: bool = True,
     stem: str | None = None,
+    units: str = "",
 ) -> dict[str, str]:
     """Write the files of one rollout (see the module docstring); returns label -> path.
+
+    ``units``: the dataset's length unit (axis labels and colour bars of the pictures).
 
     ``stem`` is the file-name stem (default: the simulation's safe stem); files are replaced.
     """
@@ -88,6 +96,7 @@ def save_rollout(
     dt = float(sim.attrs.get("dt", 1.0))
     stem = out_dir / (stem or safe_stems([result.name])[result.name])
     attrs = {"dt": dt, "source_simulation": sim.name, "model": model_name, "t0": result.t0,
+             "first_frame": result.t0 - 1,
              "n_nodes_full": n_all, "subset": bool(idx.size < n_all)}
     for key in ("rotation_deg", "seed", "reference_wall_time_s", "solver_wall_time_s"):
         if key in sim.attrs:
@@ -99,7 +108,8 @@ def save_rollout(
                                          [rollout_sim], name=f"{result.name} rollout",
                                          source=f"thrombojax rollout ({model_name})")}
     error = np.linalg.norm(pred - true, axis=-1)
-    common = dict(clot_cells=clot_cells, wall_cells=wall_cells, dt=dt, format=format)
+    common = dict(clot_cells=clot_cells, wall_cells=wall_cells, dt=dt, format=format,
+                  first_frame=result.t0 - 1)
     files["prediction"] = export_trajectory(stem.with_name(f"{stem.name}_prediction"), pred,
                                             result.node_type, point_data={"error": error},
                                             **common)
@@ -119,8 +129,16 @@ def save_rollout(
     if gif:
         with atomic_path(stem.with_name(f"{stem.name}_rollout.gif")) as tmp:
             animate_rollout(pred, true, result.node_type, tmp,
-                            title=f"{model_name} / {result.name}", first_frame=result.t0 - 1)
+                            title=f"{model_name} / {result.name}", first_frame=result.t0 - 1,
+                            dt=dt, units=units)
         files["gif"] = stem.with_name(f"{stem.name}_rollout.gif")
+    const = phys(np.concatenate([result.initial, result.baseline]))
+    files["summary_png"] = plot_rollout_summary(
+        true, pred, const, result.node_type, stem.with_name(f"{stem.name}_summary.png"),
+        dt=dt, units=units, first_frame=result.t0 - 1,
+        frames=1 + default_summary_frames(len(pred) - 1),  # from the given frame s_t0 on
+        labels=(model_name, "constant velocity", "ground truth"),
+        title=f"{model_name} rollout on {result.name}")
     return {k: str(v) for k, v in files.items()}
 
 
@@ -161,6 +179,7 @@ def rollout_run(
     """
     trained = load_trained(run_dir, which=which)
     ds = open_dataset(dataset_path)
+    check_units(trained.config, ds, run_dir=run_dir, dataset_path=dataset_path)
     names = list(simulations) if simulations else split_names(trained, ds.names, split)
     check_split_names(names, ds.names, split if not simulations else "--sim", dataset_path,
                       run_dir)
@@ -184,7 +203,8 @@ def rollout_run(
         check_finite({"predicted positions": float(np.sum(res.pred))},
                      f"{run_dir}: checkpoint '{which}' on simulation '{name}'")
         files = save_rollout(res, sim, trained.scaling, out_dir, model_name=trained.model.name,
-                             format=format, gif=gif, stem=stems[name])
+                             format=format, gif=gif, stem=stems[name],
+                             units=str(ds.attrs.get("units", "")))
         report[name] = {"t0": res.t0, "n_steps": int(res.pred.shape[0]),
                         "n_nodes": int(res.node_index.size), "summary": res.summary,
                         "files": files, "node_index": res.node_index.tolist(),
@@ -196,7 +216,7 @@ def rollout_run(
                              s.get("mse@50", "n/a"), s["mse@full"], s["final_centroid_error"],
                              s["max_fraction_outside"]])
     result = {"model": trained.model.name, "run_dir": str(run_dir), "dataset": str(dataset_path),
-              "skip": skip, "seed": seed,
+              "skip": skip, "seed": seed, "units": str(ds.attrs.get("units", "")),
               "date": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
               "simulations": report}
     atomic_write_text(out_dir / "rollout.json", json.dumps(result, indent=1))
@@ -204,6 +224,7 @@ def rollout_run(
                             "final centroid err", "max frac. outside"], rows)
     atomic_write_text(out_dir / "rollout.md",
         "# Rollout errors (clot nodes, scaled coordinates; mean over the first h steps)\n\n"
-        + table)
+        f"Dataset length unit: {result['units'] or 'not recorded'} (pictures and ParaView "
+        "files are in this unit).\n\n" + table)
     result["table"] = table
     return result

@@ -33,6 +33,7 @@ from thrombojax.simulator.step import LearnedStep, make_step
 from thrombojax.train.guards import check_finite, check_in_box, check_split_names
 from thrombojax.train.state import TrainedModel, load_trained
 from thrombojax.types import TargetStats, clot_mask
+from thrombojax.units import check_units
 
 __all__ = [
     "split_names",
@@ -147,6 +148,7 @@ def evaluate_run(
                   force=force, what="evaluation")
     trained = load_trained(run_dir, which=which)
     ds = open_dataset(dataset_path)
+    check_units(trained.config, ds, run_dir=run_dir, dataset_path=dataset_path)
     names = split_names(trained, ds.names, split)
     check_split_names(names, ds.names, split, dataset_path, run_dir)
     step = make_step(trained.model)

@@ -1,5 +1,11 @@
-"""Dataset files: the HDF5 schema (write, read, validate), importers and summaries."""
+"""Dataset files: the HDF5 schema (write, read, validate), importers and summaries.
 
+Importers: :mod:`~thrombojax.io.meshio_import` (VTU/VTK/XDMF frames, ``.pvd`` and XDMF
+time-series files via :mod:`~thrombojax.io.series_file`) and :mod:`~thrombojax.io.abaqus`
+(``.inp`` + per-frame coordinates, :mod:`~thrombojax.io.frames`).
+"""
+
+from thrombojax.io.abaqus import import_abaqus, read_abaqus
 from thrombojax.io.hdf5 import (
     FORMAT,
     VERSION,
@@ -9,13 +15,7 @@ from thrombojax.io.hdf5 import (
     write_dataset,
 )
 from thrombojax.io.info import describe_dataset
-from thrombojax.io.meshio_import import (
-    import_abaqus,
-    import_mesh_series,
-    read_abaqus,
-    read_frames,
-    read_mesh_series,
-)
+from thrombojax.io.meshio_import import import_mesh_series, read_frames, read_mesh_series
 from thrombojax.io.schema import VESSEL_TOLERANCE, Simulation, validate_simulation
 
 __all__ = [

@@ -14,6 +14,20 @@ Every file is written atomically, an existing one is replaced only with ``force=
 input file is never a target, and file names come from :func:`thrombojax.io.outputs.safe_stems`
 (simulation names with dots, slashes or Windows reserved names cannot collide or escape).
 
+Times are physical: frame ``k`` of a series whose first frame is simulation frame ``first_frame``
+is written at ``t = (first_frame + k) * dt`` (``dt`` from the simulation's attributes), so a
+rollout (which starts at frame ``t0 - 1``) and the exported ground truth (from frame 0) play in
+step when ParaView opens them together.
+
+Readers: ParaView and VTK read both formats (XDMF with the "XDMF Reader" / ``vtkXdmfReader``,
+the ``.pvd`` natively). ``meshio.read`` reads one mesh, not a time series: it stops at the XDMF
+collection ("Unknown section 'Grid'"), so with meshio either read the VTU files of the ``"vtu"``
+series one by one (the universally readable option), or use ``meshio.xdmf.TimeSeriesReader``:
+it returns the points of the first frame only, so every XDMF frame also carries the
+``position`` point array (the frame's points, no extra storage); it misreads vertex cells, so
+it reads only files whose nodes are all in tetrahedra or triangles. ``thrombojax import vtu``
+reads both back (:mod:`thrombojax.io.series_file`).
+
 Cells: clot tetrahedra and wall triangles when the simulation has them (and every index is
 kept), plus one vertex cell per node that no cell covers, so every node is visible. Point data:
 ``node_type`` (int, :class:`~thrombojax.types.NodeType`), ``displacement`` from frame 0 and any
@@ -111,7 +125,8 @@ def _write_xdmf(out: pathlib.Path, positions, times, blocks, static, fields) -> 
         _data_item(top, h5_path.name, "/topology", topo)
         geo = ET.SubElement(grid, "Geometry", GeometryType="XYZ")
         _data_item(geo, h5_path.name, f"/geometry/{t:05d}", positions[t].astype(np.float32))
-        items = [(k, f"/static/{k}", v) for k, v in static.items()]
+        items = [("position", f"/geometry/{t:05d}", positions[t].astype(np.float32))]
+        items += [(k, f"/static/{k}", v) for k, v in static.items()]
         items += [(k, f"/fields/{k}/{t:05d}", v[t]) for k, v in fields.items()]
         for key, path, value in items:
             kind = "Vector" if value.ndim == 2 and value.shape[1] == 3 else "Scalar"
@@ -156,6 +171,7 @@ def export_trajectory(
     format: str = "xdmf",
     force: bool = True,
     inputs: tuple = (),
+    first_frame: int = 0,
 ) -> pathlib.Path:
     """Write one trajectory as a ParaView time series.
 
@@ -170,6 +186,8 @@ def export_trajectory(
         format: ``"xdmf"`` or ``"vtu"``.
         force: replace existing files (else :class:`~thrombojax.errors.OutputError`).
         inputs: files that must never be written over.
+        first_frame: simulation frame of ``positions[0]``; frame ``k`` is written at time
+            ``(first_frame + k) * dt``.
     Returns:
         The path ParaView opens (``.xdmf`` or ``.pvd``).
     """
@@ -183,7 +201,7 @@ def export_trajectory(
     out.parent.mkdir(parents=True, exist_ok=True)
     blocks = _cell_blocks(positions.shape[1], clot_cells, wall_cells)
     static, fields = _point_fields(positions, node_type, point_data)
-    times = np.arange(positions.shape[0]) * float(dt)
+    times = (int(first_frame) + np.arange(positions.shape[0])) * float(dt)
     writer = _write_xdmf if format == "xdmf" else _write_vtu
     return writer(out, positions, times, blocks, static, fields)
 
@@ -191,6 +209,9 @@ def export_trajectory(
 def export_simulation(sim, out: str | pathlib.Path, *, format: str = "xdmf", force: bool = True,
                       inputs: tuple = ()) -> pathlib.Path:
     """Export a :class:`~thrombojax.io.hdf5.Simulation` (a dataset entry or a saved rollout).
+
+    Times are ``(first_frame + k) * dt`` from the simulation's attributes ``dt`` and
+    ``first_frame`` (0 for a dataset entry; a saved rollout records the frame it starts at).
 
     Args:
         sim: the simulation. out: output stem (see :func:`export_trajectory`).
@@ -202,6 +223,7 @@ def export_simulation(sim, out: str | pathlib.Path, *, format: str = "xdmf", for
         out, sim.positions, sim.node_type, clot_cells=sim.clot_cells,
         wall_cells=sim.wall_cells, dt=float(sim.attrs.get("dt", 1.0)), format=format,
         force=force, inputs=inputs,
+        first_frame=int(sim.attrs.get("first_frame", 0)),
     )
 
 

@@ -8,6 +8,12 @@
   A CSV has one row per node, comma- or whitespace-separated, an optional header line, and
   either 3 columns ``x, y, z`` in the mesh's node order or 4 columns ``label, x, y, z``
   (Abaqus node labels, any row order).
+
+With ``keep`` (nodes kept from the mesh, e.g. without a rigid body's reference node), a frame may
+list all mesh nodes (the other rows are dropped) or only the kept ones.
+
+:func:`source_name` is the default simulation name of every importer: a folder's name, a file's
+stem, or for a glob the name of the folder holding the files.
 """
 
 from __future__ import annotations
@@ -22,7 +28,19 @@ import numpy as np
 
 from thrombojax.io.schema import natural_key, simulation_error
 
-__all__ = ["list_frame_files", "read_frames"]
+__all__ = ["list_frame_files", "read_frames", "source_name"]
+
+
+def source_name(source: str | os.PathLike | Sequence) -> str:
+    """Default simulation name of a frames source: folder name, file stem, or glob's folder."""
+    if isinstance(source, list | tuple):
+        return Path(source[0]).resolve().parent.name if source else "simulation"
+    path = Path(source)
+    if path.is_dir():
+        return path.resolve().name
+    if glob.has_magic(str(source)):
+        return path.parent.resolve().name or "simulation"
+    return path.stem or "simulation"
 
 
 def list_frame_files(source: str | os.PathLike | Sequence, suffixes: Sequence[str]) -> list[Path]:
@@ -68,7 +86,8 @@ def _is_number(token: str) -> bool:
 
 
 def read_frames(
-    frames: str | os.PathLike, *, n_nodes: int, labels: np.ndarray | None = None, name: str = "?"
+    frames: str | os.PathLike, *, n_nodes: int, labels: np.ndarray | None = None,
+    name: str = "?", keep: np.ndarray | None = None,
 ) -> np.ndarray:
     """Read per-frame node coordinates in the format of the module docstring.
 
@@ -77,29 +96,46 @@ def read_frames(
         n_nodes: N, the mesh's node count (each frame must match).
         labels: ``[N]`` Abaqus node labels in mesh order (needed for 4-column CSV files).
         name: simulation name (for messages).
+        keep: optional ``[N]`` bool, the mesh nodes to return (module docstring).
     Returns:
-        ``[T, N, 3]`` float32 positions.
+        ``[T, N, 3]`` float32 positions (``[T, keep.sum(), 3]`` with ``keep``).
     """
-    frames = Path(frames)
+    if keep is not None and not np.asarray(keep).all():
+        keep = np.asarray(keep, bool)
+        n_keep = int(keep.sum())
+        allowed = (n_nodes, n_keep)
+        pos = _read_all(Path(frames), allowed, labels, name, keep)
+        return pos[:, keep] if pos.shape[1] == n_nodes else pos
+    return _read_all(Path(frames), (n_nodes,), labels, name, None)
+
+
+def _read_all(frames: Path, allowed: tuple[int, ...], labels, name: str, keep) -> np.ndarray:
+    """Frames with one of the ``allowed`` node counts (all frames the same count)."""
+    expect = " or ".join(map(str, allowed))
     if frames.is_file() and frames.suffix.lower() == ".npy":
         arr = _load_npy(frames, name)
-        if arr.ndim != 3 or arr.shape[1:] != (n_nodes, 3):
+        if arr.ndim != 3 or arr.shape[1] not in allowed or arr.shape[2] != 3:
             raise simulation_error(frames, name, "positions", f"shape {arr.shape}, expected "
-                                   f"[frames, {n_nodes}, 3]")
+                                   f"[frames, {expect}, 3]")
         return arr.astype(np.float32)
     if not frames.is_dir():
         raise FileNotFoundError(f"{frames}: expected a [T, N, 3] .npy file or a folder of frames")
     files = list_frame_files(frames, (".npy", ".csv"))
-    out = np.empty((len(files), n_nodes, 3), np.float32)
+    out = None
     for t, path in enumerate(files):
         arr = _load_npy(path, name) if path.suffix.lower() == ".npy" else _read_csv(path, name)
         if arr.ndim == 2 and arr.shape[1] == 4 and path.suffix.lower() == ".csv":
-            arr = _order_by_label(arr, labels, path, name)
+            wanted = labels if keep is None or labels is None or len(arr) == len(labels) \
+                else labels[keep]
+            arr = _order_by_label(arr, wanted, path, name)
         if arr.ndim != 2 or arr.shape[1] != 3:
             raise simulation_error(path, name, "positions", f"shape {arr.shape}, expected [N, 3]")
-        if arr.shape[0] != n_nodes:
+        count = allowed if out is None else (out.shape[1],)
+        if arr.shape[0] not in count:
             raise simulation_error(path, name, "positions", f"{arr.shape[0]} nodes, but the "
-                                   f"mesh has {n_nodes}")
+                                   f"mesh has {' or '.join(map(str, count))}")
+        if out is None:
+            out = np.empty((len(files), arr.shape[0], 3), np.float32)
         out[t] = arr
     return out
 

@@ -10,21 +10,16 @@ Tetrahedra become ``clot_cells``; triangles whose nodes are all vessel become ``
 (triangles entirely on the clot are its surface and are not stored; a triangle mixing clot and
 vessel nodes, or a node in no tetra/triangle, is an error).
 
-**Abaqus** (:func:`read_abaqus`): the mesh from a flat ``.inp`` (one ``*Node`` block, i.e. written
-without parts/assembly, as meshio reads it) and the per-frame node coordinates exported from the
-``.odb``, in one of these forms (``frames``):
+**Single-file series**: one ``.pvd`` collection or one XDMF file with a temporal collection
+(``thrombojax export`` writes both) is one simulation; its times give ``dt``
+(:mod:`thrombojax.io.series_file`).
 
-- one ``.npy`` file holding a float array ``[T, N, 3]``;
-- a folder of per-frame files ``frame_0000.npy``, ``frame_0001.npy``, ... (each ``[N, 3]``) or
-  ``frame_0000.csv``, ... (natural file-name order; any names work, one suffix per folder).
-  A CSV has one row per node, comma- or whitespace-separated, an optional header line, and
-  either 3 columns ``x, y, z`` in the ``.inp`` node order or 4 columns ``label, x, y, z``
-  (Abaqus node labels, any order).
+**Abaqus**: :func:`read_abaqus` and :func:`import_abaqus` live in :mod:`thrombojax.io.abaqus`
+(re-exported here).
 
-Node types of an Abaqus mesh come from its element or node sets: ``clot_sets`` / ``vessel_sets``
-name them (case-insensitive); by default every set whose name contains ``CLOT`` is clot and every
-set whose name contains ``VESSEL``, ``WALL`` or ``ARTERY`` is vessel (with clot sets but no vessel
-sets, all other nodes are vessel); without any matching set the element types decide as above.
+Names: a simulation is named after its source, a folder's name or a series file's stem (the
+same rule for Abaqus frames; :func:`thrombojax.io.frames.source_name`). ``units`` (the length
+unit of the coordinates) is stored in the dataset file and shown by every report.
 
 :func:`import_mesh_series` and :func:`import_abaqus` stream many simulations into one file.
 """
@@ -41,10 +36,17 @@ import numpy as np
 from tqdm import tqdm
 
 from thrombojax.errors import ConfigError, DatasetError
-from thrombojax.io.frames import list_frame_files, read_frames
+from thrombojax.io.abaqus import (
+    DEFAULT_CLOT_KEYWORDS,
+    DEFAULT_VESSEL_KEYWORDS,
+    import_abaqus,
+    read_abaqus,
+)
+from thrombojax.io.frames import list_frame_files, read_frames, source_name
 from thrombojax.io.hdf5 import write_dataset
 from thrombojax.io.outputs import input_files
 from thrombojax.io.schema import Simulation, simulation_error, validate_simulation
+from thrombojax.io.series_file import is_series_file, read_pvd, read_xdmf_series, series_dt
 from thrombojax.types import NodeType
 
 __all__ = [
@@ -55,15 +57,12 @@ __all__ = [
 
 MESH_SUFFIXES = (".vtu", ".vtk", ".xdmf", ".xmf")
 DEFAULT_NODE_TYPE_ARRAY = "node_type"
-DEFAULT_CLOT_KEYWORDS = ("CLOT",)
-DEFAULT_VESSEL_KEYWORDS = ("VESSEL", "WALL", "ARTERY")
 _TETRA = ("tetra", "tetra4")
 _READERS = {
     "vtu": meshio.vtu.read,
     "vtk": meshio.vtk.read,
     "xdmf": meshio.xdmf.read,
     "xmf": meshio.xdmf.read,
-    "abaqus": meshio.abaqus.read,
 }
 
 
@@ -74,7 +73,7 @@ def node_type_from_cells(
     path: Any = "<memory>",
     name: str = "?",
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Node types from cell blocks: tetra nodes are clot, other triangle nodes vessel wall.
+    """Node types from cell blocks: tetra nodes are clot, other triangle (or quad) nodes vessel.
 
     Args:
         n_nodes: N.
@@ -84,6 +83,8 @@ def node_type_from_cells(
     """
     tets = [np.asarray(d) for t, d in cells if t in _TETRA]
     tris = [np.asarray(d) for t, d in cells if t == "triangle"]
+    quads = [np.asarray(d) for t, d in cells if t == "quad"]  # a quad wall: two triangles each
+    tris += [q[:, idx] for q in quads for idx in ([0, 1, 2], [0, 2, 3])]
     tets = np.concatenate(tets).astype(np.int32) if tets else np.zeros((0, 4), np.int32)
     tris = np.concatenate(tris).astype(np.int32) if tris else np.zeros((0, 3), np.int32)
     if not tets.size:
@@ -159,20 +160,33 @@ def read_mesh_series(
     attrs: dict | None = None,
     progress: bool = False,
 ) -> Simulation:
-    """Read one simulation from a series of mesh files, one per frame (module docstring).
+    """Read one simulation from a series of mesh files or one series file (module docstring).
 
     Args:
-        source: a folder of frame files, a glob pattern, or a list of files.
-        name: simulation name (default: the folder's name).
+        source: a folder of frame files, a glob pattern, a list of files, or one ``.pvd`` /
+            XDMF temporal-collection file (:mod:`thrombojax.io.series_file`).
+        name: simulation name (default: the folder's name, or the series file's stem).
         node_type_array: point-data array holding the node type; required when given, else
             ``"node_type"`` if present, else the cell blocks decide.
-        attrs: simulation attributes (dt, reference_wall_time_s, ...).
+        attrs: simulation attributes (dt, reference_wall_time_s, ...). A series file's times
+            give ``dt`` (checked against a given one).
     Returns:
         The validated :class:`Simulation`, positions ``[T, N, 3]`` float32.
     """
-    files = list_frame_files(source, MESH_SUFFIXES)
-    name = name or _default_name(source, files)
-    first = _read_mesh(files[0], name)
+    attrs, positions = dict(attrs or {}), None
+    name = name or source_name(source)
+    if is_series_file(source) and Path(source).suffix.lower() == ".pvd":
+        times, files = read_pvd(source, name)
+        first = _read_mesh(files[0], name)
+    elif is_series_file(source):
+        first, positions, times = read_xdmf_series(source, name)
+        files = [Path(source)]
+    else:
+        times, files = None, list_frame_files(source, MESH_SUFFIXES)
+        first = _read_mesh(files[0], name)
+    if times is not None:
+        dt = series_dt(times, attrs.get("dt"), source, name)
+        attrs |= {"dt": dt} if dt is not None else {}
     n_nodes = len(first.points)
     array = node_type_array or DEFAULT_NODE_TYPE_ARRAY
     if array in first.point_data:
@@ -189,131 +203,15 @@ def read_mesh_series(
         node_type, clot_cells, wall_cells = node_type_from_cells(
             n_nodes, blocks, path=files[0], name=name)
         wall_cells = wall_cells if wall_cells.size else None
-    positions = np.empty((len(files), n_nodes, 3), np.float32)
-    positions[0] = _frame_points(first.points, n_nodes, files[0], name)
-    for t, path in enumerate(tqdm(files[1:], desc=name, disable=not progress), start=1):
-        positions[t] = _frame_points(_read_mesh(path, name).points, n_nodes, path, name)
+    if positions is None:
+        positions = np.empty((len(files), n_nodes, 3), np.float32)
+        positions[0] = _frame_points(first.points, n_nodes, files[0], name)
+        for t, path in enumerate(tqdm(files[1:], desc=name, disable=not progress), start=1):
+            positions[t] = _frame_points(_read_mesh(path, name).points, n_nodes, path, name)
     origin = f"{files[0]} ... ({len(files)} files)" if isinstance(source, list | tuple) else source
     sim = Simulation(name, positions, node_type, clot_cells, wall_cells,
-                     {**(attrs or {}), "source_files": str(origin)})
+                     {**attrs, "source_files": str(origin)})
     validate_simulation(sim, path=source)
-    return sim
-
-
-def _default_name(source: Any, files: list[Path]) -> str:
-    if not isinstance(source, list | tuple) and Path(source).is_dir():
-        return Path(source).resolve().name
-    return files[0].parent.resolve().name or "simulation"
-
-
-def _abaqus_labels(inp: Path, name: str) -> np.ndarray | None:
-    """Node labels of the single ``*Node`` block, in file order (None with ``*Include``)."""
-    labels, blocks, in_nodes, include = [], 0, False, False
-    with open(inp, errors="replace") as f:
-        for line in f:
-            if line.startswith("**"):
-                continue
-            if line.startswith("*"):
-                keyword = line[1:].partition(",")[0].strip().upper()
-                in_nodes = keyword == "NODE"
-                blocks += in_nodes
-                include |= keyword == "INCLUDE"
-            elif in_nodes and line.strip():
-                try:
-                    labels.append(int(line.split(",")[0]))
-                except ValueError as err:
-                    msg = f"bad *Node line {line.strip()!r}"
-                    raise simulation_error(inp, name, "mesh", msg) from err
-    if blocks > 1:
-        raise simulation_error(inp, name, "mesh", f"{blocks} *Node blocks (parts/instances); "
-                               "write the input file without parts and assembly")
-    return None if include else np.asarray(labels, np.int64)
-
-
-def _set_nodes(mesh: meshio.Mesh, key: str, path: Path, name: str) -> np.ndarray:
-    """Node indices of a node set, or of the elements of an element set."""
-    if key in mesh.point_sets:
-        return np.asarray(mesh.point_sets[key], np.int64)
-    try:
-        parts = [mesh.cells[i].data[np.asarray(idx, np.int64)].ravel()
-                 for i, idx in enumerate(mesh.cell_sets[key]) if len(idx)]
-    except IndexError as err:
-        raise simulation_error(path, name, "mesh", f"element set {key!r} does not match the "
-                               "element blocks (define it with *Elset)") from err
-    return np.unique(np.concatenate(parts)) if parts else np.zeros(0, np.int64)
-
-
-def _pick_sets(mesh: meshio.Mesh, wanted, keywords, path, name, field) -> list[str]:
-    available = {k.upper(): k for k in [*mesh.point_sets, *mesh.cell_sets]}
-    if wanted:
-        missing = [w for w in wanted if w.upper() not in available]
-        if missing:
-            raise simulation_error(path, name, field, f"no set {missing} in the .inp (have: "
-                                   f"{sorted(available.values()) or 'none'})")
-        return [available[w.upper()] for w in wanted]
-    return [k for u, k in available.items() if any(word in u for word in keywords)]
-
-
-def read_abaqus(
-    inp: str | os.PathLike,
-    frames: str | os.PathLike,
-    *,
-    name: str | None = None,
-    clot_sets: Sequence[str] | None = None,
-    vessel_sets: Sequence[str] | None = None,
-    attrs: dict | None = None,
-) -> Simulation:
-    """Read one simulation from an Abaqus ``.inp`` mesh and its per-frame coordinates.
-
-    Args:
-        inp: flat Abaqus input file (one ``*Node`` block).
-        frames: per-frame coordinates (module docstring).
-        name: simulation name (default: the frames' file or folder name).
-        clot_sets / vessel_sets: element or node set names (default: by keyword).
-        attrs: simulation attributes (dt, reference_wall_time_s, ...).
-    Returns:
-        The validated :class:`Simulation`.
-    """
-    inp, frames = Path(inp), Path(frames)
-    if not inp.is_file():
-        raise FileNotFoundError(f"{inp}: no such .inp file")
-    name = name or frames.stem
-    labels = _abaqus_labels(inp, name)
-    mesh = _read_mesh(inp, name, file_format="abaqus")
-    n_nodes = len(mesh.points)
-    clot_keys = _pick_sets(mesh, clot_sets, DEFAULT_CLOT_KEYWORDS, inp, name, "clot_sets")
-    vessel_keys = _pick_sets(mesh, vessel_sets, DEFAULT_VESSEL_KEYWORDS, inp, name, "vessel_sets")
-    blocks = [(c.type, c.data) for c in mesh.cells]
-    if clot_keys:
-        clot = np.zeros(n_nodes, bool)
-        for key in clot_keys:
-            clot[_set_nodes(mesh, key, inp, name)] = True
-        vessel = np.zeros(n_nodes, bool) if vessel_keys else ~clot
-        for key in vessel_keys:
-            vessel[_set_nodes(mesh, key, inp, name)] = True
-        if (clot & vessel).any():
-            raise simulation_error(inp, name, "node_type", f"node {int(np.argmax(clot & vessel))} "
-                                   f"is in clot sets {clot_keys} and vessel sets {vessel_keys}")
-        if not (clot | vessel).all():
-            raise simulation_error(inp, name, "node_type", f"node {int(np.argmin(clot | vessel))} "
-                                   f"is in no clot set {clot_keys} nor vessel set {vessel_keys}")
-        node_type = np.where(clot, NodeType.CLOT, NodeType.VESSEL).astype(np.int8)
-        tets = [d for t, d in blocks if t in _TETRA]
-        tris = [d for t, d in blocks if t == "triangle"]
-        tets = np.concatenate(tets) if tets else np.zeros((0, 4), np.int64)
-        tris = np.concatenate(tris) if tris else np.zeros((0, 3), np.int64)
-        clot_cells = tets[clot[tets].all(axis=1)].astype(np.int32)
-        wall_cells = tris[vessel[tris].all(axis=1)].astype(np.int32)
-    else:
-        node_type, clot_cells, wall_cells = node_type_from_cells(n_nodes, blocks, path=inp,
-                                                                 name=name)
-    positions = read_frames(frames, n_nodes=n_nodes, labels=labels, name=name)
-    sim = Simulation(
-        name, positions, node_type,
-        clot_cells if clot_cells.size else None, wall_cells if wall_cells.size else None,
-        {**(attrs or {}), "source_inp": str(inp), "source_frames": str(frames)},
-    )
-    validate_simulation(sim, path=frames)
     return sim
 
 
@@ -340,58 +238,27 @@ def import_mesh_series(
     """Import mesh-file series (one folder or glob per simulation) into one dataset file.
 
     Args:
-        sources: per simulation, a folder of frame files, a glob pattern or a list of files.
+        sources: per simulation, a folder of frame files, a glob pattern, a list of files or
+            one ``.pvd`` / XDMF time-series file.
         out: dataset file to write (atomically).
-        names: one simulation name per source (default: folder names).
+        names: one simulation name per source (default: folder names or series-file stems).
         dataset_name: file attribute ``name`` (default: ``out``'s stem).
         node_type_array, dt, reference_wall_time_s: see :func:`read_mesh_series`; the times
             are stored as attributes of every simulation.
-        units: unit of the coordinates.
+        units: length unit of the coordinates (file attribute ``units``, shown in reports).
         overwrite: replace an existing ``out``.
         progress: progress bar over simulations.
     Returns:
         The written path. Simulations are read and written one at a time.
     """
     for src in sources:
-        if not isinstance(src, list | tuple) and Path(src).is_file():
-            raise DatasetError(f"{src}: is one file; give the folder holding a simulation's frames "
-                               "or a quoted glob such as 'run1/*.vtu' (one source per simulation)")
+        if not isinstance(src, list | tuple) and Path(src).is_file() and not is_series_file(src):
+            raise DatasetError(f"{src}: is one frame file; give the folder holding a simulation's "
+                               "frames, a quoted glob such as 'run1/*.vtu', or one .pvd / XDMF "
+                               "time-series file (one source per simulation)")
     attrs = _sim_attrs(dt, reference_wall_time_s)
     sims = (read_mesh_series(src, name=n, node_type_array=node_type_array, attrs=attrs)
             for src, n in zip(sources, _names(names, len(sources)), strict=True))
     return write_dataset(out, sims, name=dataset_name or Path(out).stem, source="meshio import",
                          units=units, overwrite=overwrite, progress=progress,
                          inputs=input_files(sources))
-
-
-def import_abaqus(
-    inps: Sequence[str | os.PathLike], frames: Sequence[str | os.PathLike],
-    out: str | os.PathLike, *, names: Sequence[str] | None = None,
-    dataset_name: str | None = None, clot_sets: Sequence[str] | None = None,
-    vessel_sets: Sequence[str] | None = None, dt: float | None = None,
-    reference_wall_time_s: float | None = None, units: str = "vessel radius",
-    overwrite: bool = False, progress: bool = True,
-) -> Path:
-    """Import Abaqus simulations (one ``.inp`` for all, or one per frames source) into one file.
-
-    Args:
-        inps: one ``.inp`` shared by all simulations, or one per frames source.
-        frames: per simulation, its coordinates (a ``.npy`` or a folder; :mod:`.frames`).
-        out: dataset file to write (atomically).
-        names: one simulation name per frames source (default: their stems).
-        clot_sets, vessel_sets: set names (default: by keyword; :func:`read_abaqus`).
-        dt, reference_wall_time_s: stored as attributes of every simulation.
-        dataset_name, units, overwrite, progress: as :func:`import_mesh_series`.
-    Returns:
-        The written path.
-    """
-    if len(inps) not in (1, len(frames)):
-        raise ConfigError(f"{len(inps)} .inp files for {len(frames)} frame sources: give one "
-                           ".inp for all or one per frame source")
-    inps = list(inps) * len(frames) if len(inps) == 1 else list(inps)
-    attrs = _sim_attrs(dt, reference_wall_time_s)
-    sims = (read_abaqus(i, f, name=n, clot_sets=clot_sets, vessel_sets=vessel_sets, attrs=attrs)
-            for i, f, n in zip(inps, frames, _names(names, len(frames)), strict=True))
-    return write_dataset(out, sims, name=dataset_name or Path(out).stem, source="abaqus import",
-                         units=units, overwrite=overwrite, progress=progress,
-                         inputs=input_files([*inps, *frames]))

@@ -175,7 +175,8 @@ def generate_dataset(
         out: target file.
         n_sims: number of simulations (default: the preset's).
         seed: dataset seed (the same seed gives the same arrays).
-        plot: also write ``<out stem>.png`` with a few frames of the first simulation.
+        plot: also write ``<out>.png`` with a few frames of the first simulation (the path
+            ``out.with_suffix(".png")``).
         progress: show a progress bar.
         force: replace an existing ``out`` (and plot); without it an existing file is refused
             (:class:`~thrombojax.errors.OutputError`) before anything runs.
@@ -221,5 +222,5 @@ def generate_dataset(
         from thrombojax.sim.plot import plot_simulation
 
         with atomic_path(png) as tmp:
-            plot_simulation(first, tmp)
+            plot_simulation(first, tmp, units="vessel radius")  # the file's unit
     return out

@@ -39,7 +39,6 @@ from thrombojax.data.scaling import fit_scaling
 from thrombojax.data.splits import split_simulations
 from thrombojax.errors import ConfigError, OutputError, ThrombojaxError
 from thrombojax.io.hdf5 import open_dataset
-from thrombojax.io.outputs import atomic_path
 from thrombojax.models.registry import canonical_name, config_to_dict, create_model, get_config
 from thrombojax.simulator.step import make_step
 from thrombojax.study import training_defaults
@@ -52,6 +51,7 @@ from thrombojax.train.guards import (
     dataset_fingerprint,
     warn_schedule,
 )
+from thrombojax.train.plots import plot_losses
 from thrombojax.train.schedule import make_optimizer, make_schedule
 from thrombojax.train.state import (
     TrainedModel,
@@ -199,6 +199,7 @@ def train(
                     train=cfg).to_dict(),
         "stats": stats.to_dict(), "scaling": scaling.to_dict(), "budget": budget,
         "dataset_fingerprint": fingerprint,
+        "units": str(ds.attrs.get("units", "")),
         "steps_per_epoch": steps_per_epoch, "total_steps": total_steps, "devices": mesh.size,
         "split": split.to_dict(),
     }
@@ -322,35 +323,3 @@ def _truncate_log(path: pathlib.Path, step: int) -> None:
     lines = [ln for ln in path.read_text().splitlines() if ln.strip()]
     keep = [ln for ln in lines if json.loads(ln).get("step", 0) <= step]
     path.write_text("".join(ln + "\n" for ln in keep))
-
-
-def plot_losses(metrics_path: str | pathlib.Path, out_png: str | pathlib.Path) -> pathlib.Path:
-    """Plot training / validation loss and MSE per epoch from ``metrics.jsonl`` (log scale).
-
-    Returns:
-        The PNG path.
-    """
-    from matplotlib.figure import Figure
-
-    records = [json.loads(ln) for ln in pathlib.Path(metrics_path).read_text().splitlines()
-               if ln.strip()]
-    records = [r for r in records if "epoch" in r and "train_loss" in r]
-    fig = Figure(figsize=(9, 3.5))
-    axes = fig.subplots(1, 2)
-    for ax, key, title in ((axes[0], "loss", "loss (normalised acceleration)"),
-                           (axes[1], "mse", "MSE of s_t+1 (scaled coords)")):
-        for split in ("train", "val"):
-            pts = [(r["epoch"], r[f"{split}_{key}"]) for r in records if f"{split}_{key}" in r]
-            if pts:
-                ep, val = zip(*pts, strict=True)
-                marker = "." if len(pts) < 30 else ""
-                ax.plot(ep, np.maximum(val, 1e-30), label=split, marker=marker)
-        ax.set_yscale("log")
-        ax.set_xlabel("epoch")
-        ax.set_title(title)
-        ax.legend()
-    fig.tight_layout()
-    out_png = pathlib.Path(out_png)
-    with atomic_path(out_png) as tmp:
-        fig.savefig(tmp, dpi=100)
-    return out_png
