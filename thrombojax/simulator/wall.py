@@ -10,9 +10,11 @@
   of the closest feature (face, edge or vertex; Baerentzen & Aanaes 2005), which is the exact
   sign test for a closed mesh and reduces to the face normal inside a face.
 * ``"nodes"`` (no ``wall_cells``): the wall nodes with inward unit normals; the signed distance
-  of ``x`` is the mean over its ``K_AVG`` nearest wall nodes ``w`` of ``(w - x) . n_w`` (the
-  tangent-plane distance, positive outside, as ``thrombojax.metrics.signed_wall_distance``) and
-  its nearest wall point is ``x + s n`` with ``n`` the normalised mean normal.
+  of ``x`` is a weighted mean over its ``K_AVG`` nearest wall nodes ``w`` of ``(w - x) . n_w`` (the
+  tangent-plane distance, positive outside, as ``thrombojax.metrics.signed_wall_distance``),
+  weighted by ``1/d_j^2 - 1/d_{K+1}^2`` (Shepard weights that vanish at the next node, so the
+  distance is continuous in ``x``), and its nearest wall point is ``x + s n`` with ``n`` the
+  normalised weighted normal.
 
 Open ends: a node whose closest wall feature lies on an open boundary of the wall (a rim edge
 or rim vertex of the triangles; a rim node of the cloud, beyond it along its rim direction) is
@@ -26,12 +28,13 @@ a face are not outside. A wall node's slack is the same formula over its 6 neare
 plane); the query uses the mean slack of the ``K_AVG`` nodes.
 
 Candidate search (static shapes, nothing dropped silently): elements (triangles or nodes) are
-stored in Morton order of their centroids in blocks of ``block_size``, each with a bounding
-sphere. A query ranks the blocks by the lower bound ``max(|x - c_b| - R_b, 0)`` of the distance
-to anything inside, keeps the ``search_blocks`` best and measures every element in them
+grouped on the host into compact blocks of ``block_size`` (the leaves of median splits along
+the longest extent), each with its bounding box. A query ranks the blocks by the distance to
+their box (a lower bound of the distance to anything inside; ties inside boxes broken by the
+distance to the box centre), keeps the ``search_blocks`` best and measures every element in them
 exactly. The answer is *certified* (``WallQuery.certain``) when the distance found is at most the
-lower bound of the best block left out: no element outside the candidates can be nearer. A
-wall with at most ``search_blocks`` blocks is always searched exhaustively.
+smallest box distance of the blocks left out: no element outside the candidates can be nearer.
+A wall with at most ``search_blocks`` blocks is always searched exhaustively.
 """
 
 from __future__ import annotations
@@ -61,8 +64,8 @@ class Wall:
             nodes, zero elsewhere (zeros for triangles).
         slack: ``[F]`` outward bulge of the smooth wall beyond the face (or node plane).
         mask: ``[F]`` bool, real elements (padding is False and far away).
-        block_centre: ``[B, 3]`` bounding-sphere centres of the blocks.
-        block_radius: ``[B]`` bounding-sphere radii.
+        block_lo: ``[B, 3]`` lower corners of the blocks' bounding boxes.
+        block_hi: ``[B, 3]`` upper corners.
         spacing: ``[]`` median wall edge length (nodes: nearest-neighbour distance).
         kind: ``"triangles"`` or ``"nodes"`` (static).
         block_size: elements per block (static); ``F = B * block_size``.
@@ -78,8 +81,8 @@ class Wall:
     rim_dir: jax.Array
     slack: jax.Array
     mask: jax.Array
-    block_centre: jax.Array
-    block_radius: jax.Array
+    block_lo: jax.Array
+    block_hi: jax.Array
     spacing: jax.Array
     kind: str = struct.field(pytree_node=False, default="triangles")
     block_size: int = struct.field(pytree_node=False, default=32)
@@ -87,7 +90,7 @@ class Wall:
 
     @property
     def n_blocks(self) -> int:
-        return self.block_centre.shape[-2]
+        return self.block_lo.shape[-2]
 
 
 @struct.dataclass
@@ -157,15 +160,20 @@ def closest_point_on_triangle(p, a, b, c):
 
 def _candidates(x, wall: Wall):
     """Indices ``[N, C]`` of the candidate elements and the lower bound ``[N]`` left out."""
-    d = jnp.linalg.norm(x[:, None] - wall.block_centre[None], axis=-1)
-    lower = jnp.maximum(d - wall.block_radius[None], 0.0)  # [N, B]
+    gap = jnp.maximum(jnp.maximum(wall.block_lo[None] - x[:, None], x[:, None]
+                                  - wall.block_hi[None]), 0.0)
+    lower = jnp.linalg.norm(gap, axis=-1)  # [N, B] distance to each block's box
     n_blocks, kb = wall.n_blocks, wall.search_blocks
     if n_blocks <= kb:
         blocks = jnp.broadcast_to(jnp.arange(n_blocks), (x.shape[0], n_blocks))
         left_out = jnp.full(x.shape[:1], jnp.inf, x.dtype)
     else:
-        neg, blocks = jax.lax.top_k(-lower, kb + 1)
-        blocks, left_out = blocks[:, :kb], -neg[:, kb]
+        # ties (points inside several boxes) are broken by the distance to the box centre
+        centre = 0.5 * (wall.block_lo + wall.block_hi)
+        key = lower + 1e-3 * jnp.linalg.norm(x[:, None] - centre[None], axis=-1)
+        _, blocks = jax.lax.top_k(-key, kb)
+        chosen = jnp.zeros(lower.shape, bool).at[jnp.arange(x.shape[0])[:, None], blocks].set(True)
+        left_out = jnp.min(jnp.where(chosen, jnp.inf, lower), axis=1)
     elems = blocks[:, :, None] * wall.block_size + jnp.arange(wall.block_size)
     return elems.reshape(x.shape[0], -1), left_out
 
@@ -199,19 +207,24 @@ def _query_nodes(x, wall: Wall) -> WallQuery:
     idx, left_out = _candidates(x, wall)
     w = wall.vertices[idx, 0]  # [N, C, 3]
     d2 = jnp.where(wall.mask[idx], jnp.sum((x[:, None] - w) ** 2, axis=-1), jnp.inf)
-    k = min(K_AVG, idx.shape[1])
+    k = min(K_AVG + 1, idx.shape[1])
     neg, near = jax.lax.top_k(-d2, k)  # nearest first
     j = jnp.take_along_axis(idx, near, axis=1)  # [N, k]
     wj, nj = wall.vertices[j, 0], wall.face_normal[j]
-    signed = jnp.mean(_dot(wj - x[:, None], nj), axis=1)
-    mean_n = jnp.mean(nj, axis=1)
+    # Shepard weights vanishing at the (K_AVG + 1)-th node: continuous when neighbours swap
+    inv = 1.0 / jnp.maximum(-neg, 1e-12)
+    weight = jnp.maximum(inv - inv[:, -1:], 0.0) if k > 1 else inv
+    weight = jnp.where(jnp.isinf(neg[:, :1]), 0.0, weight)
+    weight = weight / jnp.maximum(jnp.sum(weight, axis=1, keepdims=True), 1e-30)
+    signed = jnp.sum(weight * _dot(wj - x[:, None], nj), axis=1)
+    mean_n = jnp.sum(weight[..., None] * nj, axis=1)
     normal = mean_n / jnp.maximum(jnp.linalg.norm(mean_n, axis=-1, keepdims=True), 1e-12)
     point = x + signed[:, None] * normal
     j0 = j[:, 0]
     past = wall.vertex_open[j0, 0] & (_dot(x - wall.vertices[j0, 0], wall.rim_dir[j0]) > 0)
     certain = jnp.sqrt(-neg[:, -1]) <= left_out
     return WallQuery(point=point, normal=normal, signed=signed, distance=jnp.abs(signed),
-                     slack=jnp.mean(wall.slack[j], axis=1), past_end=past, certain=certain)
+                     slack=jnp.sum(weight * wall.slack[j], axis=1), past_end=past, certain=certain)
 
 
 def nearest_wall_point(x: jax.Array, wall: Wall, *, tile_rows: int = 512) -> WallQuery:

@@ -138,42 +138,58 @@ def _part_signs(part, votes_part, votes, origins, dirs, hit_dist, n_rays, rng) -
     return signs
 
 
-def _morton(c: np.ndarray) -> np.ndarray:
-    lo, hi = c.min(axis=0), c.max(axis=0)
-    q = ((c - lo) / np.maximum(hi - lo, 1e-12) * 1023).astype(np.int64)
-    code = np.zeros(len(c), np.int64)
-    for bit in range(10):
-        for ax in range(3):
-            code |= ((q[:, ax] >> bit) & 1) << (3 * bit + ax)
-    return np.argsort(code, kind="stable")
+def _kd_order(c: np.ndarray, block_size: int) -> list[np.ndarray]:
+    """Leaves of at most ``block_size`` elements: median splits along the longest extent.
+
+    The left half of every split holds a whole number of blocks, so all leaves but the last
+    are full.
+    """
+    leaves, stack = [], [np.arange(len(c))]
+    while stack:
+        idx = stack.pop()
+        if len(idx) <= block_size:
+            leaves.append(idx)
+            continue
+        pts = c[idx]
+        axis = int(np.argmax(pts.max(axis=0) - pts.min(axis=0)))
+        order = idx[np.argsort(pts[:, axis], kind="stable")]
+        n_left = block_size * (-(-len(idx) // block_size) // 2)
+        stack += [order[n_left:], order[:n_left]]
+    return leaves
 
 
 def _pack(fields: dict, *, kind, spacing, block_size, search_blocks, max_elements) -> Wall:
-    """Morton-order, pad to whole blocks and compute the block spheres."""
+    """Group the elements into compact blocks, pad to whole blocks, compute the block boxes."""
     n = len(fields["mask"])
+    leaves = _kd_order(fields["vertices"].mean(axis=1), block_size)
     size = n if max_elements is None else int(max_elements)
     if size < n:
         raise ConfigError(f"wall_from_simulation: the wall has {n} elements, more than "
                           f"max_elements={size}")
-    n_blocks = max(1, -(-size // block_size))
-    total = n_blocks * block_size
-    order = _morton(fields["vertices"].mean(axis=1))
+    n_blocks = max(len(leaves), -(-size // block_size))
+    slots = np.full((n_blocks, block_size), -1, np.int64)
+    for b, leaf in enumerate(leaves):
+        slots[b, :len(leaf)] = leaf
+    slots = slots.reshape(-1)
+    real = slots >= 0
     out = {}
     for name, arr in fields.items():
-        pad = np.zeros((total - n,) + arr.shape[1:], arr.dtype)
+        full = np.zeros((slots.size,) + arr.shape[1:], arr.dtype)
         if name == "vertices":
-            pad[:] = _FAR
-        out[name] = np.concatenate([arr[order], pad])
+            full[:] = _FAR
+        full[real] = arr[slots[real]]
+        out[name] = full
     verts = out["vertices"].reshape(n_blocks, block_size * 3, 3)
-    valid = np.repeat(out["mask"].reshape(n_blocks, block_size), 3, axis=1)
-    cnt = np.maximum(valid.sum(axis=1, keepdims=True), 1)
-    centre = np.where(valid[..., None], verts, 0).sum(axis=1) / cnt
-    centre = np.where(valid.any(axis=1, keepdims=True), centre, _FAR)
-    rad = np.where(valid, np.linalg.norm(verts - centre[:, None], axis=-1), 0).max(axis=1)
+    valid = np.repeat(out["mask"].reshape(n_blocks, block_size), 3, axis=1)[..., None]
+    lo = np.where(valid, verts, np.inf).min(axis=1)
+    hi = np.where(valid, verts, -np.inf).max(axis=1)
+    empty = ~valid.any(axis=1)
+    lo, hi = np.where(empty, _FAR, lo), np.where(empty, _FAR, hi)
+    pad = 1e-5 * max(float(np.abs(fields["vertices"]).max()), 1.0)
     f32 = {k: jnp.asarray(v, jnp.float32 if v.dtype.kind == "f" else v.dtype)
            for k, v in out.items()}
-    return Wall(**f32, block_centre=jnp.asarray(centre, jnp.float32),
-                block_radius=jnp.asarray(rad * (1 + 1e-5), jnp.float32),
+    return Wall(**f32, block_lo=jnp.asarray(lo - pad, jnp.float32),
+                block_hi=jnp.asarray(hi + pad, jnp.float32),
                 spacing=jnp.asarray(spacing, jnp.float32), kind=kind, block_size=block_size,
                 search_blocks=search_blocks)
 
@@ -247,11 +263,16 @@ def _rim(points, normals, nbrs):
 
 
 def _node_fields(pts, clot, rng, n_rays, k):
-    k = min(k, pts.shape[0])
-    dist, idx = cKDTree(pts).query(pts, k=k)
+    k = min(k, pts.shape[0] - 1)
+    dist, idx = cKDTree(pts).query(pts, k=k + 1)
     spacing = float(np.median(dist[:, 1]))
-    centred = pts[idx] - pts[idx].mean(axis=1, keepdims=True)
+    # weights vanishing at the (k+1)-th neighbour: ties in the neighbour ranking do not matter
+    # (the normals do not depend on the orientation of the frame)
+    w_pca = np.maximum(1.0 - (dist / np.maximum(dist[:, -1:], 1e-300)) ** 2, 0.0)[..., None]
+    mean = (w_pca * pts[idx]).sum(axis=1, keepdims=True) / w_pca.sum(axis=1, keepdims=True)
+    centred = (pts[idx] - mean) * np.sqrt(w_pca)
     normal = np.linalg.eigh(np.einsum("nki,nkj->nij", centred, centred))[1][:, :, 0]
+    dist, idx = dist[:, :k], idx[:, :k]
     rows = np.repeat(np.arange(len(pts)), k - 1)
     cols = idx[:, 1:].reshape(-1)
     w = 1.0 - np.abs(np.einsum("ek,ek->e", normal[rows], normal[cols])) + 1e-9
@@ -275,8 +296,10 @@ def _node_fields(pts, clot, rng, n_rays, k):
                         rng)
     normal = normal * signs[part][:, None]
     is_rim, rim_dir = _rim(pts, normal, idx[:, 1:])
-    n_sl = idx[:, 1:min(k, 7)]
-    slack = (np.linalg.norm(pts[n_sl] - pts[:, None], axis=-1)
+    k_sl = min(k, 7)  # the 6 nearest, without a neighbour tied with the 7th
+    n_sl = idx[:, 1:k_sl]
+    near = dist[:, 1:k_sl] < dist[:, k_sl:k_sl + 1] * (1 - 1e-6) if k_sl < k else True
+    slack = (np.where(near, np.linalg.norm(pts[n_sl] - pts[:, None], axis=-1), 0.0)
              * np.linalg.norm(normal[n_sl] - normal[:, None], axis=-1)).max(axis=1) / _SLACK_DIV
     n = len(pts)
     fields = {"vertices": np.repeat(pts[:, None], 3, axis=1), "face_normal": normal,
