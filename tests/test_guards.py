@@ -116,7 +116,7 @@ def test_walls_of_several_simulations_vmap_with_padding(vessel):
     xs = [radial_push(v, 0.6)[: vessel["clot"].sum()] for v in (vessel, v2)]
     xs = jnp.asarray(np.stack(xs), jnp.float32)
     clot = jnp.ones(xs.shape[1], bool)
-    out, corr = jax.vmap(lambda y, w: contain(y, clot, w, margin=MARGIN))(xs, stacked)
+    out, corr = jax.jit(jax.vmap(lambda y, w: contain(y, clot, w, margin=MARGIN)))(xs, stacked)
     assert float(corr.min(axis=1).max()) == 0.0 and float(corr.max(axis=1).min()) > 0.0
     single = jax.jit(lambda y, w: (contain(y, clot, w, margin=MARGIN)[0],
                                    fraction_outside_wall(y, clot, w)))
@@ -128,8 +128,8 @@ def test_walls_of_several_simulations_vmap_with_padding(vessel):
 
 def _brute(x, wall):
     verts = np.asarray(wall.vertices)[np.asarray(wall.mask)]
-    cp, _ = closest_point_on_triangle(x[:, None], verts[:, 0], verts[:, 1], verts[:, 2])
-    return np.linalg.norm(x[:, None] - np.asarray(cp), axis=-1).min(axis=1)
+    cp, _ = closest_point_on_triangle(x[:, None], verts[:, 0], verts[:, 1], verts[:, 2], xp=np)
+    return np.linalg.norm(x[:, None] - cp, axis=-1).min(axis=1)
 
 
 def test_triangle_query_is_exact_where_certified(vessel):

@@ -42,13 +42,14 @@ def flat_wall(request):
 
 def test_distance_and_direction_to_a_flat_wall(flat_wall):
     x = jnp.array([[0.1, 0.2, 0.3], [-0.3, 0.1, -0.2], [0.2, 0.2, 2.5], [0.0, 0.0, 0.0]])
-    f = jax.jit(lambda y: wall_features(y, flat_wall, cutoff=CUTOFF))(x)
+    feats = jax.jit(lambda y, m: wall_features(y, flat_wall, cutoff=CUTOFF, node_mask=m))
+    f = feats(x, jnp.ones(4, bool))
     assert f.shape == (4, WALL_FEATURES)
     np.testing.assert_allclose(f[0], [0.3, 0.0, 0.0, -1.0], atol=1e-5)  # inside: toward -z
     np.testing.assert_allclose(f[1], [0.2, 0.0, 0.0, 1.0], atol=1e-5)  # outside: toward +z
     np.testing.assert_allclose(f[2], [1.0, 0.0, 0.0, 0.0], atol=1e-6)  # beyond the cutoff
     np.testing.assert_allclose(f[3], [0.0, 0.0, 0.0, 0.0], atol=1e-6)  # on the wall
-    masked = wall_features(x, flat_wall, cutoff=CUTOFF, node_mask=jnp.array([1, 0, 1, 1], bool))
+    masked = feats(x, jnp.array([1, 0, 1, 1], bool))
     np.testing.assert_array_equal(np.asarray(masked[1]), 0.0)
     np.testing.assert_allclose(masked[0], f[0], atol=1e-6)
 
@@ -88,10 +89,10 @@ def test_rest_edge_features():
     senders = jnp.array([1, 2, 0, 4, 3])
     receivers = jnp.array([0, 1, 2, 4, 0])  # edge 3 is a sentinel (N = 4)
     clot = jnp.array([True, True, True, False])
-    disp, norm = jax.jit(lambda s, r: rest_edge_features(x_ref, s, r, clot_mask=clot))(
-        senders, receivers)
+    f = jax.jit(lambda s, r, m: rest_edge_features(x_ref, s, r, clot_mask=m))
+    disp, norm = f(senders, receivers, clot)
     np.testing.assert_allclose(disp[:3], [[1, 0, 0], [-1, 2, 0], [0, -2, 0]])
     np.testing.assert_allclose(norm[:3], [1, np.sqrt(5), 2], rtol=1e-6)
     np.testing.assert_array_equal(np.asarray(disp[3:]), 0.0)  # sentinel, vessel end
-    disp_all, _ = rest_edge_features(x_ref, senders, receivers)
+    disp_all, _ = f(senders, receivers, jnp.ones(4, bool))
     np.testing.assert_allclose(disp_all[4], [5.0, 5.0, 5.0])

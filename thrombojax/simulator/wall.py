@@ -120,28 +120,34 @@ def _dot(a, b):
     return jnp.sum(a * b, axis=-1)
 
 
-def closest_point_on_triangle(p, a, b, c):
+def closest_point_on_triangle(p, a, b, c, xp=jnp):
     """Closest point of triangles ``(a, b, c)`` to points ``p`` (broadcasting ``[..., 3]``).
 
+    Args:
+        p, a, b, c: ``[..., 3]`` points and triangle vertices.
+        xp: the array module (``jax.numpy``; ``numpy`` for host-side use).
     Returns:
         ``(point [..., 3], region [...] int32)``: region 0 face, 1/2/3 vertex a/b/c,
         4/5/6 edge ab/bc/ca (Ericson's Voronoi-region test, exact zeros off the face).
     """
+    def dot(u, v):
+        return xp.sum(u * v, axis=-1)
+
     ab, ac, ap = b - a, c - a, p - a
-    d1, d2 = _dot(ab, ap), _dot(ac, ap)
+    d1, d2 = dot(ab, ap), dot(ac, ap)
     bp = p - b
-    d3, d4 = _dot(ab, bp), _dot(ac, bp)
+    d3, d4 = dot(ab, bp), dot(ac, bp)
     cp = p - c
-    d5, d6 = _dot(ab, cp), _dot(ac, cp)
+    d5, d6 = dot(ab, cp), dot(ac, cp)
     va, vb, vc = d3 * d6 - d5 * d4, d5 * d2 - d1 * d6, d1 * d4 - d3 * d2
 
     def safe(num, den):
-        return num / jnp.where(den == 0, 1.0, den)
+        return num / xp.where(den == 0, 1.0, den)
 
     denom = va + vb + vc
     v_f, w_f = safe(vb, denom), safe(vc, denom)
     point = a + v_f[..., None] * ab + w_f[..., None] * ac
-    region = jnp.zeros(va.shape, jnp.int32)
+    region = xp.zeros(va.shape, xp.int32)
     # cases from the lowest to the highest priority of Ericson's early returns
     cases = [
         ((va <= 0) & (d4 - d3 >= 0) & (d5 - d6 >= 0), 5,
@@ -153,8 +159,8 @@ def closest_point_on_triangle(p, a, b, c):
         ((d1 <= 0) & (d2 <= 0), 1, a),
     ]
     for cond, code, pt in cases:
-        point = jnp.where(cond[..., None], jnp.broadcast_to(pt, point.shape), point)
-        region = jnp.where(cond, code, region)
+        point = xp.where(cond[..., None], xp.broadcast_to(pt, point.shape), point)
+        region = xp.where(cond, code, region)
     return point, region
 
 

@@ -82,8 +82,7 @@ def _consistent_winding(tris: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.nd
 
 
 def _closest_np(p, a, b, c):
-    point, region = closest_point_on_triangle(p, a, b, c)
-    return np.asarray(point, np.float64), np.asarray(region)
+    return closest_point_on_triangle(p, a, b, c, xp=np)
 
 
 def _ray_votes(origins, dirs, hit_dist) -> np.ndarray:
