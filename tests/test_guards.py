@@ -58,6 +58,8 @@ def test_outward_push_leaves_the_vessel_and_contain_brings_it_back(vessel, wall)
     assert float(frac(jnp.asarray(x, jnp.float32))) == pytest.approx(flagged.mean())
     x_new, corr = _guard(x, clot, wall)
     assert float(frac(x_new)) == 0.0
+    q_new = jax.jit(lambda y: nearest_wall_point(y, wall))(x_new)
+    assert (np.asarray(q_new.signed)[np.asarray(corr) > 0] < 0).all(), "not inside the facets"
     assert true_phi(vessel, np.asarray(x_new, np.float64)).min() > -MISSED_DEPTH[wall.kind]
     moved = np.asarray(corr) > 0
     np.testing.assert_array_equal(moved[vessel["clot"]], flagged)
@@ -223,6 +225,20 @@ def test_coherence_restores_a_stretched_rotated_clot():
     err = lambda y: np.abs(_pairwise(np.asarray(y)[mask]) - _pairwise(ref[mask])).mean()  # noqa: E731
     assert err(half) < err(stretched)
     np.testing.assert_allclose(corr_half, 0.5 * corr, rtol=1e-4, atol=1e-6)
+
+
+def test_coherence_never_mirrors_the_clot():
+    ref, mask = _clot()
+    mirrored = ref.copy()
+    mirrored[:, 0] *= -1.0
+    out, _ = jax.jit(lambda a: coherence(a, jnp.asarray(ref), jnp.asarray(mask),
+                                         stiffness=1.0))(jnp.asarray(mirrored))
+    out = np.asarray(out)
+
+    def volumes(y):
+        return np.linalg.det(np.stack([y[1:40:3] - y[0], y[2:41:3] - y[0], y[3:42:3] - y[0]], 1))
+
+    np.testing.assert_array_equal(np.sign(volumes(out)), np.sign(volumes(ref)))
 
 
 def test_coherence_tolerance_allows_small_deviations():
