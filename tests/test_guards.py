@@ -147,6 +147,12 @@ def test_triangle_query_is_exact_where_certified(vessel):
         np.testing.assert_allclose(np.asarray(q.distance)[certain], _brute(x, w)[certain],
                                    atol=1e-5)
         assert (np.asarray(q.distance) >= _brute(x, w) - 1e-5).all()
+    # tiles (lax.map over rows) and padding change nothing
+    padded = wall_from_simulation(*args, max_elements=2 * len(args[2]))
+    assert int(padded.mask.sum()) == len(args[2]) < padded.mask.size
+    tiled = jax.jit(lambda y: nearest_wall_point(y, padded, tile_rows=64))(jnp.asarray(x))
+    np.testing.assert_allclose(tiled.distance, _brute(x, padded), atol=1e-5)
+    np.testing.assert_array_equal(np.asarray(tiled.certain), True)
 
 
 def test_orientation_does_not_depend_on_the_winding(vessel):

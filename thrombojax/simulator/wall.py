@@ -11,7 +11,7 @@
   sign test for a closed mesh and reduces to the face normal inside a face.
 * ``"nodes"`` (no ``wall_cells``): the wall nodes with inward unit normals; the signed distance
   of ``x`` is a weighted mean over its ``K_AVG`` nearest wall nodes ``w`` of ``(w - x) . n_w`` (the
-  tangent-plane distance, positive outside, as ``thrombojax.metrics.signed_wall_distance``),
+  tangent-plane distance, positive outside, as the host-side containment metric),
   weighted by ``1/d_j^2 - 1/d_{K+1}^2`` (Shepard weights that vanish at the next node, so the
   distance is continuous in ``x``), and its nearest wall point is ``x + s n`` with ``n`` the
   normalised weighted normal.
@@ -46,7 +46,7 @@ from flax import struct
 __all__ = ["Wall", "WallQuery", "K_AVG", "nearest_wall_point", "closest_point_on_triangle"]
 
 K_AVG: int = 3
-"""Wall nodes averaged by the ``"nodes"`` kind (as ``thrombojax.metrics.signed_wall_distance``)."""
+"""Wall nodes averaged by the ``"nodes"`` kind (as the host-side containment metric)."""
 
 
 @struct.dataclass

@@ -8,15 +8,16 @@ shared edge in the same direction); each connected part then gets one global sig
 normals point inward: the side where the clot's nodes of the first frame lie (the clot starts
 inside the vessel; each clot node votes with the sign of ``(x - closest) . n`` of its nearest
 triangle). A part that no clot node is nearest to is oriented by rays: from a sample of its face
-centres, the side whose ray meets the wall first is inward (the ray test of
-``thrombojax.metrics``). Pseudo-normals: angle-weighted vertex normals and the sum of the two face
+centres, the side whose ray meets the wall first is inward (the ray test of the host-side
+containment metric). Pseudo-normals: angle-weighted vertex normals and the sum of the two face
 normals at an edge. Open ends: edges used by one triangle.
 
 Nodes (no ``wall_cells``): the normal of a vessel node is the least-variance direction (PCA) of
 its ``k`` nearest vessel nodes; the signs are made consistent along the minimum spanning tree of
 the k-nearest-neighbour graph weighted by ``1 - |n_i . n_j|`` (Hoppe et al. 1992), then each
 connected part is oriented by the clot vote (else rays), as above. Rim nodes (open ends): the
-angular-gap test of ``thrombojax.metrics`` (largest gap between neighbours > 135 degrees).
+angular-gap test of the host-side containment metric (largest gap between neighbours > 135
+degrees).
 """
 
 from __future__ import annotations
