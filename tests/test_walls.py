@@ -52,6 +52,9 @@ def test_distance_and_direction_to_a_flat_wall(flat_wall):
     masked = feats(x, jnp.array([1, 0, 1, 1], bool))
     np.testing.assert_array_equal(np.asarray(masked[1]), 0.0)
     np.testing.assert_allclose(masked[0], f[0], atol=1e-6)
+    # differentiable (k-step losses through the features), also on the wall itself
+    grad = jax.jit(jax.grad(lambda y: feats(y, jnp.ones(4, bool)).sum()))(x)
+    assert np.isfinite(np.asarray(grad)).all()
 
 
 def test_fraction_outside_counts_clot_nodes_through_the_wall(flat_wall):

@@ -26,7 +26,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from thrombojax.errors import ConfigError
-from thrombojax.simulator.wall import Wall, WallQuery, nearest_wall_point
+from thrombojax.simulator.wall import Wall, WallQuery, nearest_wall_point, safe_norm
 from thrombojax.simulator.wall_build import wall_from_simulation
 
 __all__ = [
@@ -64,7 +64,7 @@ def contain(
     out = movable_mask & (q.signed > q.slack + tol) & ~q.past_end
     target = q.point + margin * q.normal
     x_new = jnp.where(out[:, None], target, x)
-    correction = jnp.where(out, jnp.linalg.norm(target - x, axis=-1), 0.0)
+    correction = jnp.where(out, safe_norm(target - x), 0.0)
     return x_new, correction
 
 
@@ -95,7 +95,8 @@ def coherence(
     Each clot node is pulled toward its place ``g_i = R (x_ref_i - c_ref) + c`` in the best rigid
     copy of the rest shape: ``x_i += stiffness * (e_i - clip(e_i, tolerance))`` with deviation
     ``e_i = g_i - x_i`` and ``clip`` shortening a vector to at most ``tolerance``. A rigidly
-    moved clot is left unchanged; nodes outside ``clot_mask`` are untouched.
+    moved clot is left unchanged; nodes outside ``clot_mask`` are untouched. Meant for the
+    rollout, not for gradients: the SVD's derivative is undefined where singular values repeat.
 
     Args:
         x: ``[N, 3]`` current positions.
@@ -110,10 +111,10 @@ def coherence(
     c, c_ref, rot = _rigid_fit(x, x_ref, w)
     goal = (x_ref - c_ref) @ rot.T + c
     dev = goal - x
-    norm = jnp.linalg.norm(dev, axis=-1, keepdims=True)
+    norm = safe_norm(dev, keepdims=True)
     excess = dev * jnp.maximum(1.0 - tolerance / jnp.maximum(norm, 1e-30), 0.0)
     move = jnp.where(clot_mask[:, None], stiffness * excess, 0.0)
-    return x + move, jnp.linalg.norm(move, axis=-1)
+    return x + move, safe_norm(move)
 
 
 def relax_edges(
@@ -146,7 +147,7 @@ def relax_edges(
 
     def sweep(_, y):
         d = y[s] - y[r]
-        length = jnp.linalg.norm(d, axis=-1)
+        length = safe_norm(d)
         target = jnp.clip(length, (1 - max_strain) * rest, (1 + max_strain) * rest)
         bad = ok & (jnp.abs(length - target) > 0)
         push = jnp.where(bad[:, None], 0.5 * (length - target)[:, None]
@@ -158,7 +159,7 @@ def relax_edges(
 
     x_new = jax.lax.fori_loop(0, iterations, sweep, x)
     x_new = jnp.where(movable_mask[:, None], x_new, x)
-    return x_new, jnp.linalg.norm(x_new - x, axis=-1)
+    return x_new, safe_norm(x_new - x)
 
 
 def cell_edges(cells: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

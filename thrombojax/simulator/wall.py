@@ -43,7 +43,14 @@ import jax
 import jax.numpy as jnp
 from flax import struct
 
-__all__ = ["Wall", "WallQuery", "K_AVG", "nearest_wall_point", "closest_point_on_triangle"]
+__all__ = [
+    "Wall",
+    "WallQuery",
+    "K_AVG",
+    "nearest_wall_point",
+    "closest_point_on_triangle",
+    "safe_norm",
+]
 
 K_AVG: int = 3
 """Wall nodes averaged by the ``"nodes"`` kind (as the host-side containment metric)."""
@@ -118,6 +125,13 @@ class WallQuery:
 
 def _dot(a, b):
     return jnp.sum(a * b, axis=-1)
+
+
+def safe_norm(v: jax.Array, axis: int = -1, keepdims: bool = False) -> jax.Array:
+    """Euclidean norm, exactly 0 for a zero vector, with a zero (not NaN) gradient there."""
+    sq = jnp.sum(v * v, axis=axis, keepdims=keepdims)
+    pos = sq > 0
+    return jnp.where(pos, jnp.sqrt(jnp.where(pos, sq, 1.0)), 0.0)
 
 
 def closest_point_on_triangle(p, a, b, c, xp=jnp):
@@ -202,7 +216,7 @@ def _query_triangles(x, wall: Wall) -> WallQuery:
         [jnp.zeros_like(wall.edge_open[f][:, :1]), wall.vertex_open[f], wall.edge_open[f]], axis=1
     )
     diff = x - point
-    distance = jnp.linalg.norm(diff, axis=-1)
+    distance = safe_norm(diff)
     signed = jnp.where(_dot(diff, normal) > 0, -distance, distance)
     certain = distance <= left_out
     return WallQuery(point=point, normal=normal, signed=signed, distance=distance,

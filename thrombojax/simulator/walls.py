@@ -15,7 +15,7 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
-from thrombojax.simulator.wall import Wall, nearest_wall_point
+from thrombojax.simulator.wall import Wall, nearest_wall_point, safe_norm
 
 __all__ = ["WALL_FEATURES", "wall_features", "rest_edge_features", "fraction_outside_wall"]
 
@@ -39,7 +39,7 @@ def wall_features(
     """
     q = nearest_wall_point(x, wall)
     diff = q.point - x
-    d = jnp.linalg.norm(diff, axis=-1)
+    d = safe_norm(diff)
     near = (d < cutoff) & (d > 0)
     direction = jnp.where(near[:, None], diff / jnp.where(near, d, 1.0)[:, None], 0.0)
     feats = jnp.concatenate([jnp.minimum(d, cutoff)[:, None] / cutoff, direction], axis=-1)
@@ -71,7 +71,7 @@ def rest_edge_features(
     if clot_mask is not None:
         ok = ok & clot_mask[s] & clot_mask[r]
     disp = jnp.where(ok[:, None], x_ref[s] - x_ref[r], 0.0)
-    return disp, jnp.linalg.norm(disp, axis=-1)
+    return disp, safe_norm(disp)
 
 
 def fraction_outside_wall(
