@@ -1,6 +1,13 @@
-"""The learned simulator: one learned step (:mod:`.step`) and its rollouts (:mod:`.rollout`).
+"""The learned simulator: the one learned step and everything that acts on it.
 
-This layer sits between the models and everything that runs them: training losses, evaluation
-and benchmarks call :func:`thrombojax.simulator.step.make_step` and never rebuild the step.
-Rollout guards that act on the step's output belong here too.
+- :mod:`.step`: the learned step (inputs -> graph -> model -> denormalise -> integrate).
+- :mod:`.rollout`: the step in a ``lax.scan`` (rollouts, the k-step loss).
+- :mod:`.wall`, :mod:`.wall_build`: the rigid vessel wall as a pytree (triangles, or nodes and
+  normals) and its exact nearest-point query; built on the host from a dataset frame.
+- :mod:`.guards`: physics guards on a step's output (containment in the wall, coherence of the
+  clot's shape, edge-length relaxation), each returning how far it moved every node.
+- :mod:`.walls`: per-node input features from the wall and rest-state edge features.
+
+Training losses, evaluation and benchmarks call :func:`thrombojax.simulator.step.make_step` and
+never rebuild the step.
 """

@@ -1,0 +1,178 @@
+"""Physics guards of a rollout step: containment in the rigid vessel and clot coherence.
+
+Pure, jittable and vmappable functions on one frame; each returns the corrected positions and
+how far it moved every node (``correction [N]``, 0 for nodes it left alone), so a rollout can
+record per step how much the guards had to fix (a large correction means the model is wrong).
+
+* :func:`contain`: clot nodes that crossed the rigid wall (signed distance beyond the wall's
+  slack, not past an open end; see :mod:`thrombojax.simulator.wall`) are put back on the inner
+  side, at their nearest wall point moved by ``margin`` along the inward normal.
+* :func:`coherence`: shape matching (Mueller et al. 2005, "Meshless deformations based on shape
+  matching"): the best rigid fit of the rest shape ``x_ref`` to the current clot (centroids and
+  the rotation of the polar decomposition of ``sum (x - c)(x_ref - c_ref)^T``, by SVD with the
+  reflection removed), and each node is pulled by ``stiffness`` toward that rigid copy for the
+  part of its deviation beyond ``tolerance``.
+* :func:`relax_edges`: edge-length relaxation on ``clot_cells`` edges: edges stretched or
+  compressed beyond ``max_strain`` are brought back to the limit (Jacobi iterations, both ends
+  move equally, moves of a node averaged over its violated edges).
+
+The wall is built on the host with :func:`wall_from_simulation` (re-exported here).
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from thrombojax.errors import ConfigError
+from thrombojax.simulator.wall import Wall, WallQuery, nearest_wall_point, safe_norm
+from thrombojax.simulator.wall_build import wall_from_simulation
+
+__all__ = [
+    "Wall",
+    "WallQuery",
+    "wall_from_simulation",
+    "nearest_wall_point",
+    "contain",
+    "coherence",
+    "relax_edges",
+    "cell_edges",
+]
+
+
+def contain(
+    x: jax.Array, movable_mask: jax.Array, wall: Wall, *, margin: float, tol: float = 0.0
+) -> tuple[jax.Array, jax.Array]:
+    """Put movable nodes that crossed the wall back inside. Jittable, vmappable.
+
+    A node is outside when its signed wall distance exceeds ``slack + tol`` (slack: the outward
+    bulge of the smooth wall beyond the nearest triangle, 0 for a node wall) and it is not past
+    an open end. It moves to its nearest wall point plus ``margin`` along the inward normal;
+    every other node keeps its position exactly.
+
+    Args:
+        x: ``[N, 3]`` positions (the wall's coordinates).
+        movable_mask: ``[N]`` bool, nodes that may be moved (real clot nodes).
+        wall: the :class:`Wall`.
+        margin: distance inside the wall where a corrected node lands (>= 0).
+        tol: extra signed distance tolerated before a node counts as outside (>= 0).
+    Returns:
+        ``(x_new [N, 3], correction [N])``: corrected positions and the distance each node moved.
+    """
+    q = nearest_wall_point(x, wall)
+    out = movable_mask & (q.signed > q.slack + tol) & ~q.past_end
+    target = q.point + margin * q.normal
+    x_new = jnp.where(out[:, None], target, x)
+    correction = jnp.where(out, safe_norm(target - x), 0.0)
+    return x_new, correction
+
+
+def _rigid_fit(x, x_ref, w):
+    """Centroids and rotation ``R`` minimising ``sum w |R (x_ref - c_ref) + c - x|^2``."""
+    total = jnp.maximum(jnp.sum(w), 1.0)
+    c = jnp.sum(w[:, None] * x, axis=0) / total
+    c_ref = jnp.sum(w[:, None] * x_ref, axis=0) / total
+    p, q = (x - c) * w[:, None], (x_ref - c_ref) * w[:, None]
+    a = p.T @ q  # [3, 3] sum_i p_i q_i^T
+    u, _, vt = jnp.linalg.svd(a)
+    d = jnp.sign(jnp.linalg.det(u @ vt))
+    d = jnp.where(d == 0, 1.0, d)
+    rot = u @ jnp.diag(jnp.array([1.0, 1.0, 1.0], x.dtype).at[2].set(d)) @ vt
+    return c, c_ref, rot
+
+
+def coherence(
+    x: jax.Array,
+    x_ref: jax.Array,
+    clot_mask: jax.Array,
+    *,
+    stiffness: float,
+    tolerance: float = 0.0,
+) -> tuple[jax.Array, jax.Array]:
+    """Shape matching of the clot to its rest shape. Jittable, vmappable.
+
+    Each clot node is pulled toward its place ``g_i = R (x_ref_i - c_ref) + c`` in the best rigid
+    copy of the rest shape: ``x_i += stiffness * (e_i - clip(e_i, tolerance))`` with deviation
+    ``e_i = g_i - x_i`` and ``clip`` shortening a vector to at most ``tolerance``. A rigidly
+    moved clot is left unchanged; nodes outside ``clot_mask`` are untouched. Meant for the
+    rollout, not for gradients: the SVD's derivative is undefined where singular values repeat.
+
+    Args:
+        x: ``[N, 3]`` current positions.
+        x_ref: ``[N, 3]`` rest positions (e.g. the clot's first frame).
+        clot_mask: ``[N]`` bool, the clot's real nodes (one body).
+        stiffness: in [0, 1]; 0 does nothing, 1 snaps to the rigid copy (beyond ``tolerance``).
+        tolerance: deviation from the rigid copy allowed without correction (>= 0).
+    Returns:
+        ``(x_new [N, 3], correction [N])``.
+    """
+    w = clot_mask.astype(x.dtype)
+    c, c_ref, rot = _rigid_fit(x, x_ref, w)
+    goal = (x_ref - c_ref) @ rot.T + c
+    dev = goal - x
+    norm = safe_norm(dev, keepdims=True)
+    excess = dev * jnp.maximum(1.0 - tolerance / jnp.maximum(norm, 1e-30), 0.0)
+    move = jnp.where(clot_mask[:, None], stiffness * excess, 0.0)
+    return x + move, safe_norm(move)
+
+
+def relax_edges(
+    x: jax.Array,
+    x_ref: jax.Array,
+    senders: jax.Array,
+    receivers: jax.Array,
+    movable_mask: jax.Array,
+    *,
+    max_strain: float,
+    iterations: int = 4,
+) -> tuple[jax.Array, jax.Array]:
+    """Bring edge lengths back within ``(1 +- max_strain)`` of their rest length. Jittable.
+
+    Args:
+        x, x_ref: ``[N, 3]`` current and rest positions.
+        senders, receivers: ``[E]`` int edge ends (each undirected edge once); entries outside
+            ``[0, N)`` (sentinels) and edges with an end not in ``movable_mask`` are ignored.
+        movable_mask: ``[N]`` bool.
+        max_strain: allowed relative change of an edge's length (> 0).
+        iterations: Jacobi sweeps (static).
+    Returns:
+        ``(x_new [N, 3], correction [N])``: positions and the distance each node moved in total.
+    """
+    n = x.shape[0]
+    ok = (senders >= 0) & (senders < n) & (receivers >= 0) & (receivers < n)
+    s, r = jnp.where(ok, senders, 0), jnp.where(ok, receivers, 0)
+    ok = ok & movable_mask[s] & movable_mask[r]
+    rest = jnp.linalg.norm(x_ref[s] - x_ref[r], axis=-1)
+
+    def sweep(_, y):
+        d = y[s] - y[r]
+        length = safe_norm(d)
+        target = jnp.clip(length, (1 - max_strain) * rest, (1 + max_strain) * rest)
+        bad = ok & (jnp.abs(length - target) > 0)
+        push = jnp.where(bad[:, None], 0.5 * (length - target)[:, None]
+                         * d / jnp.maximum(length, 1e-30)[:, None], 0.0)
+        delta = jax.ops.segment_sum(-push, s, n) + jax.ops.segment_sum(push, r, n)
+        count = jax.ops.segment_sum(bad.astype(y.dtype), s, n) + jax.ops.segment_sum(
+            bad.astype(y.dtype), r, n)
+        return y + delta / jnp.maximum(count, 1.0)[:, None]
+
+    x_new = jax.lax.fori_loop(0, iterations, sweep, x)
+    x_new = jnp.where(movable_mask[:, None], x_new, x)
+    return x_new, safe_norm(x_new - x)
+
+
+def cell_edges(cells: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Unique undirected edges of cells (host-side): ``[C, k]`` -> ``(senders [E], receivers [E])``.
+
+    Raises:
+        ConfigError: ``cells`` is not a 2-D integer array with at least 2 columns.
+    """
+    cells = np.asarray(cells)
+    if cells.ndim != 2 or cells.shape[1] < 2 or cells.dtype.kind not in "iu":
+        raise ConfigError(f"cell_edges: cells must be an integer [C, k>=2] array, got "
+                          f"{cells.dtype} {cells.shape}")
+    k = cells.shape[1]
+    pairs = np.concatenate([cells[:, [i, j]] for i in range(k) for j in range(i + 1, k)])
+    pairs = np.unique(np.sort(pairs, axis=1), axis=0)
+    return pairs[:, 0].astype(np.int32), pairs[:, 1].astype(np.int32)
