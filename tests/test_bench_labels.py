@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from thrombojax.bench import bench_markdown, run_config_label
+from thrombojax.eval.bench import bench_markdown, run_config_label
 
 
 def _row(config, weights):
@@ -16,13 +16,14 @@ def test_run_config_label_names_what_differs_from_the_study_config():
     from thrombojax.models.registry import config_to_dict, get_config
 
     study = config_to_dict(get_config("mgn"))
-    cfg = {"model": "mgn", "model_config": {**study, "hidden": 32, "processor_size": 5},
-           "train": {"tiny": False}}
+    cfg = {"model": "mgn",
+           "train": {"tiny": False, "model_config": {**study, "hidden": 32, "processor_size": 5}}}
     assert run_config_label("demo/run_mgn", cfg) == \
         "run run_mgn (study config with hidden=32, processor_size=5)"
-    assert run_config_label("r", {"model": "mgn", "model_config": study}) == "run r (study config)"
+    assert run_config_label("r", {"model": "mgn", "train": {"model_config": study}}) == \
+        "run r (study config)"
     tiny = config_to_dict(get_config("mgn", tiny=True))
-    assert run_config_label("r", {"model": "mgn", "model_config": tiny, "train": {"tiny": True}}) \
+    assert run_config_label("r", {"model": "mgn", "train": {"tiny": True, "model_config": tiny}}) \
         == "run r (tiny config)"
 
 

@@ -113,7 +113,7 @@ def test_import_refuses_to_write_over_its_source(tmp_path):
     (frames / "f0.vtu").write_text("not read")
     before = sha(frames / "f0.vtu")
     code = main(["import", "vtu", str(frames), "--out", str(frames / "f0.vtu"), "--force",
-                 "--quiet"])
+                 "--units", "mm", "--quiet"])
     assert code == 2
     assert sha(frames / "f0.vtu") == before
 

@@ -10,12 +10,12 @@ is seen as a bend.
 
 from __future__ import annotations
 
-import os
 import pathlib
 from collections.abc import Callable
 
 import numpy as np
 
+from thrombojax.io.outputs import atomic_path
 from thrombojax.types import NodeType
 
 __all__ = [
@@ -124,16 +124,11 @@ def draw_clot(ax, clot_xyz: np.ndarray, *, values=None, color="tab:blue", cmap="
 
 
 def save_atomic(write: Callable[[pathlib.Path], object], path: str | pathlib.Path) -> pathlib.Path:
-    """Write a picture atomically: ``write(tmp)`` into a hidden file beside ``path``, then rename.
-
-    ``write`` must write the file's format explicitly (the temporary name ends in ``.tmp``).
+    """Write a picture atomically: ``write(tmp)`` into a tagged temporary beside ``path``, then
+    rename (:func:`thrombojax.io.outputs.atomic_path`: the temporary keeps the suffix, a killed
+    write leaves a temporary that the next write in that folder removes).
     """
     path = pathlib.Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.tmp")
-    try:
+    with atomic_path(path) as tmp:
         write(tmp)
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
     return path

@@ -11,7 +11,17 @@ import argparse
 import math
 from collections.abc import Callable
 
-__all__ = ["int_at_least", "float_at_least", "float_above", "angle"]
+__all__ = [
+    "int_at_least",
+    "float_at_least",
+    "float_above",
+    "angle",
+    "NN_INT",
+    "POS_INT",
+    "NN_FLOAT",
+    "POS_FLOAT",
+    "output_flags",
+]
 
 
 def _number(text: str, kind: type) -> float:
@@ -70,3 +80,14 @@ def angle(text: str) -> float:
     if not math.isfinite(value) or value < 0:
         raise argparse.ArgumentTypeError(f"must be a finite angle >= 0, got {text!r}")
     return value
+
+
+# argument types: numbers are checked (finite, in range) when the flags are parsed
+NN_INT, POS_INT = int_at_least(0), int_at_least(1)
+NN_FLOAT, POS_FLOAT = float_at_least(0.0), float_above(0.0)
+
+
+def output_flags(p, force_help: str) -> None:
+    """``--force`` and ``--quiet``: the same two flags on every writing command."""
+    p.add_argument("--force", action="store_true", help=f"{force_help} (never an input file)")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")

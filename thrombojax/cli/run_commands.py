@@ -1,0 +1,221 @@
+"""Subcommands that train and measure surrogates: train, evaluate, rollout, bench."""
+
+from __future__ import annotations
+
+from thrombojax.cli.options import (
+    NN_FLOAT,
+    NN_INT,
+    POS_FLOAT,
+    POS_INT,
+    angle,
+    output_flags,
+)
+
+__all__ = ["REGISTRARS"]
+
+
+def _add_train(sub) -> None:
+    p = sub.add_parser(
+        "train",
+        help="train a surrogate (MeshGraphNet, Transolver, Erwin) on a dataset",
+        description=(
+            "Train a step-by-step surrogate as the study did: AdamW with linear warm-up then "
+            "cosine decay, masked MSE on clot nodes, random rotations, optional node subsampling "
+            "and BaryCentricSampling. Writes DIR/config.json, DIR/checkpoints/{best,last}, "
+            "DIR/metrics.jsonl and DIR/loss.png. Options left out take the --config file's "
+            "values, else the study's (each model's batch size and learning rate)."
+        ),
+    )
+    p.add_argument("--dataset", metavar="FILE", help="dataset .h5 file (default: the dataset of "
+                   "a run's config.json given as --config)")
+    p.add_argument("--model", help="mgn | transolver | erwin (default: the model of a run's "
+                   "config.json given as --config)")
+    p.add_argument("--out", required=True, metavar="DIR", help="run directory to write")
+    p.add_argument("--config", metavar="FILE", help="JSON training config (TrainConfig keys), "
+                   "or a run's config.json to repeat that run")
+    p.add_argument("--resume", action="store_true", help="continue the run in DIR exactly")
+    p.add_argument("--epochs", type=POS_INT, help="epochs (study: 300)")
+    p.add_argument("--batch-size", type=POS_INT, help="samples per step (study: 8 mgn/erwin, 16 "
+                   "transolver); a multiple of the number of devices")
+    p.add_argument("--lr", type=POS_FLOAT,
+                   help="peak learning rate (study: 1e-3 mgn, 1e-4 others)")
+    p.add_argument("--warmup-epochs", type=NN_FLOAT, help="linear warm-up epochs (study: 10)")
+    p.add_argument("--radius", type=POS_FLOAT, help="graph radius in scaled coordinates (a "
+                   "model config field)")
+    p.add_argument("--max-rotation", type=angle, help="largest random rotation, radians; also "
+                   "'pi', 'pi/2', '0.5pi' or '90deg' (study's best: pi; 0 disables)")
+    p.add_argument("--nodes-per-sample", type=POS_INT, help="subsample N nodes per sample, clot "
+                   "fraction kept (study: 2048 on ClotEntry; default all nodes)")
+    p.add_argument("--bary-ratio", type=NN_FLOAT, help="BaryCentricSampling samples per real "
+                   "sample (study's best on BendVessel: 2, i.e. real:generated 1:2; default 0)")
+    p.add_argument("--noise-std", type=NN_FLOAT, help="training noise on s_t (default 0: off)")
+    p.add_argument("--seed", type=NN_INT, help="seed of initialisation, data order, augmentations")
+    p.add_argument("--skip-frames", type=NN_INT, help="first frames never used as frame t of a "
+                   "window (default 0: every window)")
+    p.add_argument("--rollout-steps", type=POS_INT, help="k of the k-step unrolled loss "
+                   "(default 1: single-step loss)")
+    p.add_argument("--n-val", type=NN_INT, help="validation simulations (default 2)")
+    p.add_argument("--n-test", type=NN_INT, help="test simulations, never trained on (default 1)")
+    p.add_argument("--tiny", action="store_true", default=None, help="tiny model config")
+    p.add_argument("--distributed", action="store_true",
+                   help="multi-host: call jax.distributed.initialize() first (run on every host)")
+    output_flags(p, "start a new run in DIR even if it holds one (its checkpoints are removed)")
+    p.set_defaults(func=_run_train)
+
+
+def _run_train(args) -> int:
+    from thrombojax.train.config import RunConfig, TrainConfig, load_config_file
+    from thrombojax.train.loop import train
+
+    names = ("epochs", "batch_size", "lr", "warmup_epochs", "max_rotation",
+             "nodes_per_sample", "bary_ratio", "noise_std", "seed", "skip_frames", "n_val",
+             "n_test", "tiny", "rollout_steps")
+    overrides = {k: getattr(args, k) for k in names if getattr(args, k) is not None}
+    config = load_config_file(args.config) if args.config else None
+    if args.radius is not None:
+        base = config.train if isinstance(config, RunConfig) else (config or TrainConfig())
+        overrides["model_config"] = {**base.model_config, "radius": args.radius}
+    from thrombojax.train.summary import run_summary
+
+    trained = train(args.dataset, args.model, args.out, config=config, resume=args.resume,
+                    progress=not args.quiet, distributed=args.distributed, force=args.force,
+                    **overrides)
+    print(run_summary(args.out, trained.model.name))
+    return 0
+
+
+def _add_evaluate(sub) -> None:
+    p = sub.add_parser(
+        "evaluate",
+        help="single-step MSE of a trained run on its test split (JSON + markdown table)",
+        description=(
+            "Teacher-forced one-step prediction on every window of the run's test split: MSE over "
+            "clot nodes in scaled [-1, 1] coordinates (the study's metric), beside the "
+            "constant-velocity baseline. Writes evaluate.json and evaluate.md."
+        ),
+    )
+    p.add_argument("--run", required=True, metavar="DIR", help="training run directory")
+    p.add_argument("--dataset", required=True, metavar="FILE", help="dataset .h5 file")
+    p.add_argument("--out", metavar="DIR", help="output folder (default: the run directory)")
+    p.add_argument("--split", default="test", choices=("train", "val", "test", "all"))
+    p.add_argument("--checkpoint", default="best", choices=("best", "last"))
+    p.add_argument("--skip", type=NN_INT, default=0,
+                   help="skip windows whose middle frame < SKIP")
+    p.add_argument("--nodes", type=POS_INT, help="fixed seeded node subset (default: the "
+                   "run's nodes_per_sample, else all nodes)")
+    output_flags(p, "replace existing evaluate.json / evaluate.md")
+    p.set_defaults(func=_run_evaluate)
+
+
+def _run_evaluate(args) -> int:
+    from thrombojax.eval.single_step import evaluate_run
+
+    res = evaluate_run(args.run, args.dataset, out_dir=args.out, split=args.split,
+                       which=args.checkpoint, skip=args.skip, n_nodes=args.nodes,
+                       progress=not args.quiet, force=args.force)
+    print(res["table"], end="")
+    print(f"wrote {args.out or args.run}/evaluate.json and evaluate.md")
+    return 0
+
+
+def _add_rollout(sub) -> None:
+    p = sub.add_parser(
+        "rollout",
+        help="roll a trained run out: trajectory HDF5, ParaView series, GIF, error plots",
+        description=(
+            "Autoregressive rollout (one compiled jax.lax.scan) of a trained run on dataset "
+            "simulations, starting after the dataset's skipped frames (its skip_frames attribute: "
+            "5 BendVessel, 40 ClotEntry, as in the study). "
+            "Writes per simulation: <sim>_rollout.h5 (dataset schema), <sim>_prediction.xdmf and "
+            "<sim>_truth.xdmf (node types and error as point data), <sim>_rollout.gif (prediction "
+            "beside ground truth), <sim>_error.png and <sim>_metrics.png (with the "
+            "constant-velocity baseline), plus rollout.json and rollout.md."
+        ),
+    )
+    p.add_argument("--run", required=True, metavar="DIR", help="training run directory")
+    p.add_argument("--dataset", required=True, metavar="FILE", help="dataset .h5 file")
+    p.add_argument("--out", required=True, metavar="DIR", help="output folder")
+    p.add_argument("--sim", action="append", metavar="NAME",
+                   help="simulation to roll out (repeatable; default: the run's test split)")
+    p.add_argument("--split", default="test", choices=("train", "val", "test", "all"))
+    p.add_argument("--checkpoint", default="best", choices=("best", "last"))
+    p.add_argument("--skip", type=NN_INT, help="skipped frames (default: the dataset's "
+                   "skip_frames attribute)")
+    p.add_argument("--steps", type=POS_INT, help="rollout steps (default: to the last frame)")
+    p.add_argument("--nodes", type=POS_INT, help="fixed seeded node subset (the study: 2048 on "
+                   "ClotEntry; default: the run's nodes_per_sample, else all nodes)")
+    p.add_argument("--seed", type=NN_INT, default=0, help="seed of the node subset")
+    p.add_argument("--format", default="xdmf", choices=("xdmf", "vtu"), help="ParaView format")
+    p.add_argument("--no-gif", action="store_true", help="skip the animation")
+    output_flags(p, "replace existing rollout files in DIR")
+    p.set_defaults(func=_run_rollout)
+
+
+def _run_rollout(args) -> int:
+    from thrombojax.eval.report import rollout_run
+
+    res = rollout_run(args.run, args.dataset, args.out, simulations=args.sim, split=args.split,
+                      which=args.checkpoint, skip=args.skip, n_steps=args.steps,
+                      n_nodes=args.nodes, seed=args.seed, format=args.format,
+                      gif=not args.no_gif, force=args.force, progress=not args.quiet)
+    print(res["table"], end="")
+    print(f"wrote rollouts to {args.out}/")
+    return 0
+
+
+def _add_bench(sub) -> None:
+    p = sub.add_parser(
+        "bench",
+        help="time rollouts at the study's sizes; speed-up over Abaqus and our solver",
+        description=(
+            "For each model and size (bendvessel: 35 steps x 977 nodes; clotentry: 160 x 2048; "
+            "clotentry-full: 160 x 27000) report compile time, steady-state rollout time, "
+            "per-step time, the time scaled to the whole simulation and the speed-up over the "
+            "study's Abaqus times (180 s / 1500 s) and our solver's measured time. Models are "
+            "random-initialised (timing needs no trained weights) unless --run is given. "
+            "Writes bench.json and bench.md with device, versions and date."
+        ),
+    )
+    p.add_argument("--models", default="mgn,transolver,erwin", help="comma-separated models")
+    p.add_argument("--cases", default="bendvessel,clotentry,clotentry-full",
+                   help="comma-separated sizes: bendvessel, clotentry, clotentry-full")
+    p.add_argument("--run", action="append", metavar="MODEL=DIR", default=[],
+                   help="time a trained run for MODEL (repeatable)")
+    p.add_argument("--tiny", action="store_true", help="tiny configs instead of the study's")
+    p.add_argument("--nodes", type=POS_INT, help="override every case's node count")
+    p.add_argument("--max-steps", type=POS_INT,
+                   help="time at most this many steps; extrapolate")
+    p.add_argument("--repeats", type=POS_INT, default=3, help="steady-state repetitions (median)")
+    p.add_argument("--dataset", metavar="FILE", help="take positions from this dataset")
+    p.add_argument("--solver-dataset", action="append", default=[], metavar="FILE",
+                   help="dataset whose solver_wall_time_s is our solver's time (repeatable)")
+    p.add_argument("--measure-solver", action="append", default=[], metavar="PRESET",
+                   help="run this solver preset once now to time our solver (repeatable)")
+    p.add_argument("--out", metavar="DIR", help="write bench.json and bench.md here")
+    output_flags(p, "replace existing bench.json / bench.md")
+    p.set_defaults(func=_run_bench)
+
+
+def _run_bench(args) -> int:
+    from thrombojax.errors import ConfigError
+    from thrombojax.eval.bench import bench
+
+    runs = {}
+    for item in args.run:
+        if "=" not in item:
+            raise ConfigError(f"--run expects MODEL=DIR, got '{item}'")
+        name, path = item.split("=", 1)
+        runs[name] = path
+    res = bench(tuple(m for m in args.models.split(",") if m),
+                tuple(c for c in args.cases.split(",") if c), runs=runs, tiny=args.tiny,
+                n_nodes=args.nodes, max_steps=args.max_steps, repeats=args.repeats,
+                dataset=args.dataset, solver_datasets=tuple(args.solver_dataset),
+                measure_solver=tuple(args.measure_solver), out_dir=args.out,
+                progress=not args.quiet, force=args.force)
+    print(res["table"], end="")
+    for path in res.get("files", []):
+        print(f"wrote {path}")
+    return 0
+
+
+REGISTRARS = [_add_train, _add_evaluate, _add_rollout, _add_bench]
