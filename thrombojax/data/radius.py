@@ -19,7 +19,7 @@ or cross a flared outlet; where the radius varies along the vessel it is the med
 radius. Measured: 1.00 on the built-in BendVessel walls (radius 1), 0.98-1.00 on frame 0 of
 ``bendvessel-tiny`` and ``clotentry-tiny`` solver data, 1.09 on ClotEntry walls (radius tapering
 1.0 -> 1.18, median 1.09), within 3 % on synthetic straight and bent tubes of any radius
-(``tests/test_radius.py``). A clot-based alternative (largest distance of a frame-0 clot node to its
+(tests/test_radius.py). A clot-based alternative (largest distance of a frame-0 clot node to its
 nearest wall node) was measured too and rejected: it needs the clot inside the lumen at frame 0
 and overestimates by up to half the wall-node spacing.
 
