@@ -54,6 +54,8 @@ class TrainConfig:
         seed: initialisation, data order, augmentations.
         split_seed: which simulations are validation / test.
         n_val, n_test: simulations held out for validation / test.
+        train_sims, val_sims, test_sims: a split by name instead (any of them given: the
+            named simulations; training defaults to every simulation not named elsewhere).
         skip_frames: first frames never used as the frame t of a window (default 0: every
             window, the study's single-step setting).
         rollout_steps: k of the k-step unrolled loss (1: the single-step loss; windows of
@@ -84,6 +86,9 @@ class TrainConfig:
     split_seed: int = 0
     n_val: int = 2
     n_test: int = 1
+    train_sims: tuple[str, ...] = ()
+    val_sims: tuple[str, ...] = ()
+    test_sims: tuple[str, ...] = ()
     skip_frames: int = 0
     rollout_steps: int = 1
     pushforward_steps: int = 0
@@ -93,6 +98,11 @@ class TrainConfig:
     checkpoint_every: int = 0
 
     def __post_init__(self) -> None:
+        for name in ("train_sims", "val_sims", "test_sims"):
+            value = getattr(self, name)
+            if isinstance(value, str) or not all(isinstance(v, str) for v in value):
+                raise ConfigError(f"{name} must be a list of simulation names, got {value!r}")
+            object.__setattr__(self, name, tuple(value))
         check_train_values(self)  # types, finiteness, ranges of every field
         if self.epochs < 1:
             raise ConfigError(f"epochs must be >= 1, got {self.epochs}")

@@ -37,7 +37,7 @@ from thrombojax.data.batching import (
 )
 from thrombojax.data.radius import vessel_radius
 from thrombojax.data.scaling import fit_scaling
-from thrombojax.data.splits import split_simulations
+from thrombojax.data.splits import make_split, split_simulations
 from thrombojax.errors import ConfigError, OutputError, ThrombojaxError
 from thrombojax.io.hdf5 import open_dataset
 from thrombojax.models.registry import canonical_name, config_to_dict, create_model, get_config
@@ -165,8 +165,12 @@ def train(
     fingerprint = dataset_fingerprint(ds)
     if saved is not None:
         check_resume_dataset(saved, fingerprint, scaling.to_dict(), dataset_path, out_dir)
-    split = split_simulations(list(ds.names), n_test=cfg.n_test, n_val=cfg.n_val,
-                              seed=cfg.split_seed)
+    if cfg.train_sims or cfg.val_sims or cfg.test_sims:
+        split = make_split(list(ds.names), test=cfg.test_sims, val=cfg.val_sims,
+                           train=cfg.train_sims or None)
+    else:
+        split = split_simulations(list(ds.names), n_test=cfg.n_test, n_val=cfg.n_val,
+                                  seed=cfg.split_seed)
     length = cfg.pushforward_steps + cfg.rollout_steps + 2
     train_store = load_store(ds, split.train, scaling, skip=cfg.skip_frames, length=length)
     val_store = (load_store(ds, split.val, scaling, skip=cfg.skip_frames, length=length)
