@@ -19,7 +19,6 @@ from thrombojax.eval.uncertainty import (
     uncertainty_report,
     uncertainty_summary,
 )
-from thrombojax.models.registry import create_model, get_config
 from thrombojax.simulator.ensemble import (
     ensemble_jit,
     ensemble_rollout,
@@ -28,7 +27,6 @@ from thrombojax.simulator.ensemble import (
     stochastic_rollout,
 )
 from thrombojax.simulator.rollout import rollout
-from thrombojax.simulator.step import make_step
 from thrombojax.types import NodeType, TargetStats
 
 TRACES: list[int] = []  # the fake model appends here each time its graph is traced
@@ -83,15 +81,6 @@ def test_identical_members_give_the_single_rollout_and_zero_spread():
     assert ens.mean.shape == (6, 40, 3) and ens.spread.shape == (6, 40)
     assert np.array_equal(np.asarray(ens.mean), single)
     assert np.array_equal(np.asarray(ens.spread), np.zeros((6, 40)))
-    # a real model: the batched (vmapped) kernels may round differently from the single
-    # rollout, but members that agree still give their value exactly and a zero spread
-    mgn = create_model("mgn", get_config("mgn", tiny=True))
-    pm = make_step(mgn).init(jax.random.key(0), x_prev, x_cur, node_type, mask)
-    ens = ensemble_rollout(mgn, stack_params([pm, pm]), stats, x_prev, x_cur, node_type, mask, 3)
-    assert np.array_equal(np.asarray(ens.mean), np.asarray(ens.members[0]))
-    assert np.array_equal(np.asarray(ens.spread), np.zeros((3, 40)))
-    single = np.asarray(rollout(mgn, pm, stats, x_prev, x_cur, node_type, mask, 3))
-    np.testing.assert_allclose(np.asarray(ens.mean), single, rtol=0, atol=1e-5)
 
 
 def test_different_members_spread_on_clot_only_and_members_are_their_rollouts():
@@ -278,6 +267,15 @@ def test_train_and_load_ensemble(tiny_ensemble):
     clot = sim.node_type == NodeType.CLOT
     assert (np.asarray(out.spread)[:, clot] > 0).all() and (np.asarray(out.spread)[:, ~clot]
                                                              == 0).all()
+    # a real model, two copies of member 0 (same compiled program): batched kernels may round
+    # differently from a single rollout, but agreeing members give their value exactly, spread 0
+    p0 = jax.tree.map(lambda x: x[0], ens.params)
+    same = ensemble_rollout(ens.model, stack_params([p0, p0]), ens.stats, frames[3], frames[4],
+                            sim.node_type, mask, 3)
+    assert np.array_equal(np.asarray(same.mean), np.asarray(same.members[0]))
+    assert np.array_equal(np.asarray(same.spread), np.zeros_like(np.asarray(same.spread)))
+    np.testing.assert_allclose(np.asarray(same.mean), np.asarray(out.members[0]), rtol=0,
+                               atol=1e-5)
 
 
 def _edit_config(run_dir, edit):
@@ -313,3 +311,38 @@ def test_load_ensemble_refuses_mismatched_members(tiny_ensemble):
     shutil.rmtree(partial / "member_1" / "checkpoints")
     with pytest.raises(ConfigError, match="member_1: ensemble member has no 'best'"):
         load_ensemble(partial)
+
+
+def _clamped_unroll(step, params, stats, x0_prev, x0, node_type, mask, n_steps, context):
+    """A custom member rollout: the plain one clipped to a box (the context), plus how far."""
+    from thrombojax.simulator.ensemble import plain_unroll
+
+    pos = plain_unroll(step, params, stats, x0_prev, x0, node_type, mask, n_steps, None)
+    clipped = jnp.clip(pos, -context, context)
+    return clipped, jnp.abs(clipped - pos).max(axis=-1)
+
+
+def test_member_chunks_and_custom_member_rollout():
+    model = FakeSurrogate()
+    x_prev, x_cur, node_type, mask, stats = _state()
+    stack = stack_params([_params(model, s) for s in range(3)])
+    whole = ensemble_rollout(model, stack, stats, x_prev, x_cur, node_type, mask, 5)
+    chunked = ensemble_rollout(model, stack, stats, x_prev, x_cur, node_type, mask, 5,
+                               member_batch=2)
+    np.testing.assert_allclose(np.asarray(chunked.members), np.asarray(whole.members),
+                               rtol=0, atol=1e-6)
+    p = _params(model, 0)
+    kw = dict(n_members=3, noise_std=1e-3, rng=jax.random.key(1))
+    a = stochastic_rollout(model, p, stats, x_prev, x_cur, node_type, mask, 5, **kw)
+    b = stochastic_rollout(model, p, stats, x_prev, x_cur, node_type, mask, 5, member_batch=1,
+                           **kw)
+    np.testing.assert_allclose(np.asarray(b.members), np.asarray(a.members), rtol=0, atol=1e-6)
+    box = 0.5
+    guarded = ensemble_rollout(model, stack, stats, x_prev, x_cur, node_type, mask, 5,
+                               rollout_fn=_clamped_unroll, context=jnp.float32(box))
+    assert np.abs(np.asarray(guarded.members)).max() <= box
+    assert guarded.aux.shape == (3, 5, 40) and float(guarded.aux.max()) > 0
+    np.testing.assert_allclose(np.asarray(guarded.members),
+                               np.clip(np.asarray(whole.members), -box, box), atol=1e-6)
+    with pytest.raises(ConfigError):
+        ensemble_rollout(model, stack, stats, x_prev, x_cur, node_type, mask, 5, member_batch=0)

@@ -28,6 +28,8 @@ A custom member rollout (e.g. one with physics guards) plugs in through ``rollou
 hashable callable ``rollout_fn(step, params, stats, x0_prev, x0, node_type, mask, n_steps,
 context)`` returning positions ``[n_steps, N, 3]`` or ``(positions, aux)``; ``context`` is any
 pytree shared by all members (a wall), ``aux`` any pytree, returned stacked per member.
+``member_batch`` runs the members in chunks (a ``lax.map`` of vmapped chunks, one program) when
+all M at once do not fit in memory.
 """
 
 from __future__ import annotations
@@ -151,14 +153,24 @@ def plain_unroll(step, params, stats, x0_prev, x0, node_type, mask, n_steps, con
 
 
 def _ensemble_impl(step, params, stats, x0_prev, x0, node_type, mask, context, n_steps,
-                   params_batched, state_batched, rollout_fn):
+                   params_batched, state_batched, rollout_fn, member_batch=None):
     def member(p, xp, xc):
         out = rollout_fn(step, p, stats, xp, xc, node_type, mask, n_steps, context)
         return out if isinstance(out, tuple) else (out, None)
 
-    axis_p = 0 if params_batched else None
-    axis_s = 0 if state_batched else None
-    members, aux = jax.vmap(member, in_axes=(axis_p, axis_s, axis_s))(params, x0_prev, x0)
+    if member_batch is None:  # all members side by side
+        axis_p = 0 if params_batched else None
+        axis_s = 0 if state_batched else None
+        members, aux = jax.vmap(member, in_axes=(axis_p, axis_s, axis_s))(params, x0_prev, x0)
+    else:  # a loop over chunks of member_batch vmapped members (less memory)
+        mapped = (params if params_batched else None, (x0_prev, x0) if state_batched else None)
+
+        def chunk(xs):
+            p = xs[0] if params_batched else params
+            xp, xc = xs[1] if state_batched else (x0_prev, x0)
+            return member(p, xp, xc)
+
+        members, aux = jax.lax.map(chunk, mapped, batch_size=member_batch)
     mean, spread = ensemble_stats(members)
     spread = jnp.where(clot_mask(node_type, mask)[None], spread, 0.0)
     return EnsembleRollout(mean=mean, spread=spread, members=members, aux=aux)
@@ -166,13 +178,15 @@ def _ensemble_impl(step, params, stats, x0_prev, x0, node_type, mask, context, n
 
 ensemble_jit = jax.jit(
     _ensemble_impl,
-    static_argnames=("step", "n_steps", "params_batched", "state_batched", "rollout_fn"),
+    static_argnames=("step", "n_steps", "params_batched", "state_batched", "rollout_fn",
+                     "member_batch"),
 )
 """The compiled ensemble ``(step, params, stats, x0_prev, x0, node_type, mask, context, n_steps,
-params_batched, state_batched, rollout_fn) -> EnsembleRollout``: the member rollouts are vmapped
-over the leading axis of ``params`` (``params_batched``) and / or of ``x0_prev``, ``x0``
-(``state_batched``). One compilation per (step, M, N, ``n_steps``, flags, ``rollout_fn``);
-``ensemble_jit._cache_size()`` counts them."""
+params_batched, state_batched, rollout_fn, member_batch=None) -> EnsembleRollout``: the member
+rollouts are vmapped over the leading axis of ``params`` (``params_batched``) and / or of
+``x0_prev``, ``x0`` (``state_batched``), all at once or (``member_batch``) in a ``lax.map`` over
+chunks of that many members. One compilation per (step, M, N, ``n_steps``, flags,
+``rollout_fn``, ``member_batch``); ``ensemble_jit._cache_size()`` counts them."""
 
 
 def _check(n_steps: int, x0_prev, x0, node_type, mask) -> tuple:
@@ -185,6 +199,15 @@ def _check(n_steps: int, x0_prev, x0, node_type, mask) -> tuple:
         raise ConfigError(f"ensemble rollout: x0_prev {x0_prev.shape}, x0 {x0.shape}, mask "
                           f"{mask.shape} do not fit {n} nodes ([N, 3], [N, 3], [N])")
     return x0_prev, x0, node_type, mask
+
+
+def _member_batch(member_batch: int | None, m: int) -> int | None:
+    """``None`` (all members vmapped) or a chunk size in [1, M)."""
+    if member_batch is None or int(member_batch) >= m:
+        return None
+    if int(member_batch) < 1:
+        raise ConfigError(f"ensemble rollout: member_batch must be >= 1, got {member_batch}")
+    return int(member_batch)
 
 
 def _perturb(rng, x0, node_type, mask, n: int, noise_std: float) -> jax.Array:
@@ -209,6 +232,7 @@ def ensemble_rollout(
     rng: jax.Array | None = None,
     rollout_fn: Callable | None = None,
     context: Any = None,
+    member_batch: int | None = None,
 ) -> EnsembleRollout:
     """Roll out M models (stacked parameters) from the same start, in one compiled program.
 
@@ -224,6 +248,8 @@ def ensemble_rollout(
         rng: PRNG key of the perturbations (needed when ``noise_std > 0``).
         rollout_fn, context: a custom member rollout and its shared pytree (module docstring);
             ``None``: :func:`plain_unroll`.
+        member_batch: run the members in chunks of this many (a ``lax.map`` of vmapped
+            chunks, still one program; bounds memory on large clouds); ``None``: all at once.
     Returns:
         The :class:`EnsembleRollout` (``members [M, n_steps, N, 3]``).
     """
@@ -236,7 +262,8 @@ def ensemble_rollout(
         x0_prev = jnp.broadcast_to(x0_prev, x0.shape)
     return ensemble_jit(step, params_stack, stats, x0_prev, x0, node_type, mask, context,
                         int(n_steps), params_batched=True, state_batched=noisy,
-                        rollout_fn=rollout_fn or plain_unroll)
+                        rollout_fn=rollout_fn or plain_unroll,
+                        member_batch=_member_batch(member_batch, m))
 
 
 def stochastic_rollout(
@@ -254,6 +281,7 @@ def stochastic_rollout(
     rng: jax.Array,
     rollout_fn: Callable | None = None,
     context: Any = None,
+    member_batch: int | None = None,
 ) -> EnsembleRollout:
     """Roll out one model from M perturbed starts, in one compiled program.
 
@@ -265,7 +293,7 @@ def stochastic_rollout(
         x0_prev, x0: ``[N, 3]`` scaled s_{t0-1}, s_{t0}.
         node_type: ``[N]``. mask: ``[N]`` real nodes. n_steps: predicted frames (static).
         n_members: M >= 1. noise_std: perturbation std, > 0 (scaled units). rng: PRNG key.
-        rollout_fn, context: as in :func:`ensemble_rollout`.
+        rollout_fn, context, member_batch: as in :func:`ensemble_rollout`.
     Returns:
         The :class:`EnsembleRollout` (``members [M, n_steps, N, 3]``).
     """
@@ -278,4 +306,5 @@ def stochastic_rollout(
     prevs = jnp.broadcast_to(x0_prev, starts.shape)
     return ensemble_jit(step, params, stats, prevs, starts, node_type, mask, context,
                         int(n_steps), params_batched=False, state_batched=True,
-                        rollout_fn=rollout_fn or plain_unroll)
+                        rollout_fn=rollout_fn or plain_unroll,
+                        member_batch=_member_batch(member_batch, int(n_members)))
