@@ -80,3 +80,25 @@ def test_errors():
         Scaling.from_dict({"center": [0, 0, 0], "scale": 0.0})
     with pytest.raises(ConfigError):
         Scaling.from_dict({"scale": 1.0})
+
+
+def test_vessel_radius_from_units_attribute_or_geometry(tmp_path):
+    """r = 1 for data in vessel radii; else the clot-fills-the-lumen estimate (a tube of radius
+    2.5 with a clot filling it gives ~2.5); an explicit attribute wins."""
+    from thrombojax.data.radius import estimate_vessel_radius, vessel_radius
+    from thrombojax.io.hdf5 import Simulation, open_dataset, write_dataset
+    from thrombojax.types import NodeType
+
+    ang = np.linspace(0, 2 * np.pi, 40, endpoint=False)
+    wall = np.concatenate([np.stack([np.full(40, x), 2.5 * np.cos(ang), 2.5 * np.sin(ang)], 1)
+                           for x in np.linspace(-3, 3, 31)])
+    clot = np.array([[x, 0.0, 0.0] for x in np.linspace(-1, 1, 5)])
+    pos = np.concatenate([clot, wall]).astype(np.float32)
+    nt = np.array([NodeType.CLOT] * 5 + [NodeType.VESSEL] * len(wall), np.int8)
+    assert abs(estimate_vessel_radius(pos, nt) - 2.5) < 0.05
+    sim = Simulation(name="tube", positions=np.repeat(pos[None], 3, 0), node_type=nt,
+                     attrs={"dt": 0.1})
+    mm = open_dataset(write_dataset(tmp_path / "mm.h5", [sim], name="mm", source="t", units="mm"))
+    assert abs(vessel_radius(mm) - 2.5) < 0.05
+    r = open_dataset(write_dataset(tmp_path / "r.h5", [sim], name="r", source="t"))
+    assert vessel_radius(r) == 1.0  # the default unit is "vessel radius"

@@ -177,3 +177,18 @@ def test_run_config_reloads_and_repeats_the_run(dataset, tmp_path):
     ra, rb = next(a), next(b)
     assert ra["train_loss"] == rb["train_loss"] and ra["val_mse"] == rb["val_mse"]
     assert load_config_file(again / "config.json") == run
+
+
+def test_split_by_name(dataset, tmp_path):
+    """Named simulations become the test / validation parts; the rest trains."""
+    cfg = TrainConfig(test_sims=["sim4"], val_sims=("sim0",))
+    assert cfg.test_sims == ("sim4",) and TrainConfig.from_dict(cfg.to_dict()) == cfg
+    with pytest.raises(ConfigError, match="test_sims"):
+        TrainConfig(test_sims="sim4")
+    trained = train(dataset, "mgn", tmp_path / "named", progress=False, epochs=1,
+                    **{**SMALL, "test_sims": ["sim4"], "val_sims": ["sim0"]})
+    assert trained.split.test == ("sim4",) and trained.split.val == ("sim0",)
+    assert trained.split.train == ("sim1", "sim2", "sim3")
+    with pytest.raises(ConfigError, match="unknown simulation"):
+        train(dataset, "mgn", tmp_path / "bad", progress=False, epochs=1,
+              **{**SMALL, "test_sims": ["nope"]})

@@ -186,3 +186,43 @@ def test_overfit_a_few_solver_samples(name, solver_batch):
         state, _ = train_step(state, batch, jax.random.PRNGKey(i))
     end = float(eval_step(state.params, batch)["loss"])
     assert end <= 0.01 * start, (name, start, end)
+
+
+def test_pushforward_starts_the_loss_from_the_models_own_prediction():
+    """p = 1: the loss step starts from (s_t, stop_gradient(s^_t+1)) and aims at s_t+2."""
+    model = create_model("mgn", get_config("mgn", tiny=True))
+    batch = _batch(1)
+    stats = _stats(batch)
+    f3, nt, mask = (jnp.asarray(x[0]) for x in (batch.frames, batch.node_type, batch.mask))
+    frames = jnp.concatenate([f3, (2 * f3[2] - f3[1])[None]])
+    params = init_state(model, make_optimizer(1e-3), jax.random.PRNGKey(0), batch).params
+    step = make_step(model)
+    clot = mask & (nt == NodeType.CLOT)
+
+    def manual(p, pushed):
+        out = step(p, stats, frames[1], pushed, nt, mask)
+        target = stats.normalize(frames[3] - 2 * pushed + frames[1])
+        return jnp.where(clot[:, None], (out.output - target) ** 2, 0.0).mean(-1).sum()
+
+    pushed = step(params, stats, frames[0], frames[1], nt, mask).positions
+    terms = window_loss_terms(step, params, stats, frames, nt, mask, k=1, pushforward=1,
+                              train=False, rng=None)
+    np.testing.assert_allclose(terms["loss_sum"], manual(params, pushed), rtol=1e-5)
+    # no gradient through the pushed step: equal to the gradient with s^_t+1 held constant
+    g = jax.grad(lambda p: window_loss_terms(step, p, stats, frames, nt, mask, k=1,
+                                             pushforward=1, train=False,
+                                             rng=None)["loss_sum"])(params)
+    g_const = jax.grad(manual)(params, pushed)
+    for a, b in zip(jax.tree.leaves(g), jax.tree.leaves(g_const), strict=True):
+        np.testing.assert_allclose(a, b, rtol=2e-3, atol=1e-5)
+    with pytest.raises(ValueError, match="window"):
+        window_loss_terms(step, params, stats, f3, nt, mask, k=1, pushforward=1, train=False,
+                          rng=None)
+
+
+def test_curriculum_grows_k_linearly():
+    from thrombojax.train.loop import rollout_steps_at
+
+    assert [rollout_steps_at(e, 4, 8) for e in range(10)] == [1, 1, 2, 2, 3, 3, 4, 4, 4, 4]
+    assert [rollout_steps_at(e, 3, 0) for e in range(3)] == [3, 3, 3]
+    assert rollout_steps_at(0, 1, 5) == 1

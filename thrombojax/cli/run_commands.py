@@ -48,12 +48,19 @@ def _add_train(sub) -> None:
                    "fraction kept (study: 2048 on ClotEntry; default all nodes)")
     p.add_argument("--bary-ratio", type=NN_FLOAT, help="BaryCentricSampling samples per real "
                    "sample (study's best on BendVessel: 2, i.e. real:generated 1:2; default 0)")
-    p.add_argument("--noise-std", type=NN_FLOAT, help="training noise on s_t (default 0: off)")
+    p.add_argument("--noise-std", type=NN_FLOAT, help="training noise on s_t, in vessel radii "
+                   "(learning-to-simulate / MeshGraphNets noise)")
+    p.add_argument("--noise-gamma", type=NN_FLOAT, help="share of the noise the model learns to "
+                   "remove from the next position (default 0.1)")
     p.add_argument("--seed", type=NN_INT, help="seed of initialisation, data order, augmentations")
     p.add_argument("--skip-frames", type=NN_INT, help="first frames never used as frame t of a "
                    "window (default 0: every window)")
     p.add_argument("--rollout-steps", type=POS_INT, help="k of the k-step unrolled loss "
                    "(default 1: single-step loss)")
+    p.add_argument("--pushforward-steps", type=NN_INT, help="steps applied without gradients "
+                   "before the loss steps (push-forward training; default 0)")
+    p.add_argument("--curriculum-epochs", type=NN_FLOAT, help="grow k from 1 to "
+                   "--rollout-steps over this many epochs (default 0: k from the start)")
     p.add_argument("--n-val", type=NN_INT, help="validation simulations (default 2)")
     p.add_argument("--n-test", type=NN_INT, help="test simulations, never trained on (default 1)")
     p.add_argument("--tiny", action="store_true", default=None, help="tiny model config")
@@ -69,7 +76,8 @@ def _run_train(args) -> int:
 
     names = ("epochs", "batch_size", "lr", "warmup_epochs", "max_rotation",
              "nodes_per_sample", "bary_ratio", "noise_std", "seed", "skip_frames", "n_val",
-             "n_test", "tiny", "rollout_steps")
+             "n_test", "tiny", "rollout_steps", "noise_gamma", "pushforward_steps",
+             "curriculum_epochs")
     overrides = {k: getattr(args, k) for k in names if getattr(args, k) is not None}
     config = load_config_file(args.config) if args.config else None
     if args.radius is not None:

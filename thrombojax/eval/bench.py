@@ -149,7 +149,7 @@ def time_rollout(model: Surrogate, params: dict, stats: TargetStats, x_prev, x_c
         compile_s = time.perf_counter() - t
     finally:
         jax.config.update("jax_enable_compilation_cache", enabled)
-    traj = compiled(*args)
+    traj, _ = compiled(*args)
     jax.block_until_ready(traj)  # warm-up run (allocations), not timed
     times = []
     for _ in range(max(1, repeats)):

@@ -56,6 +56,8 @@ def describe_dataset(path: str | os.PathLike, *, progress: bool = False) -> str:
         f"dataset  {ds.path}",
         f"name     {a.get('name', 'n/a')}   source: {a.get('source', 'n/a')}   "
         f"units: {a.get('units', 'n/a')}",
+        f"kind     {a.get('kind', 'unknown')}   rollouts skip the first "
+        f"{a.get('skip_frames', 0)} frames",
         f"created  {a.get('created', 'n/a')}   format: {a.get('format')} v{a.get('version')}",
         f"simulations: {len(ds)}",
         "",

@@ -2,7 +2,9 @@
 
 - :func:`unroll`: ``n`` steps from ``(s_{t-1}, s_t)`` as a differentiable ``lax.scan``; the k-step
   training loss and the rollout are both this function.
-- :func:`rollout`: the compiled rollout of a surrogate (:data:`rollout_jit`).
+- :func:`rollout`: the compiled rollout of a surrogate (:data:`rollout_jit`), optionally with
+  physics guards after every step (:class:`~thrombojax.simulator.guard_set.GuardSet`), whose
+  per-step corrections :func:`rollout_with_corrections` returns.
 - :func:`constant_velocity_rollout`: the baseline every error is reported beside, the same rollout
   with the :class:`~thrombojax.models.registry.ConstantVelocity` surrogate (zero acceleration).
 """
@@ -15,10 +17,18 @@ import numpy as np
 
 from thrombojax.errors import ConfigError
 from thrombojax.models.registry import Surrogate, create_model, identity_stats
+from thrombojax.simulator.guard_set import GuardSet
 from thrombojax.simulator.step import LearnedStep, make_step
 from thrombojax.types import TargetStats
 
-__all__ = ["unroll", "rollout_jit", "rollout", "constant_velocity_rollout", "as_step"]
+__all__ = [
+    "unroll",
+    "rollout_jit",
+    "rollout",
+    "rollout_with_corrections",
+    "constant_velocity_rollout",
+    "as_step",
+]
 
 
 def as_step(model: Surrogate | LearnedStep) -> LearnedStep:
@@ -63,23 +73,38 @@ def unroll(
         s_{t0+n_steps} and the raw model outputs of each step.
     """
 
+    positions, outputs, _ = _scan(step, params, stats, x_prev, x_cur, node_type, mask, n_steps,
+                                  train=train, rng=rng)
+    return positions, outputs
+
+
+def _scan(step, params, stats, x_prev, x_cur, node_type, mask, n_steps, *, train=False,
+          rng=None, guards: GuardSet | None = None):
+    """The scan behind :func:`unroll` and the rollout: ``(positions, outputs, corrections)``."""
+
     def body(carry, i):
         prev, cur = carry
         key = None if rng is None else jax.random.fold_in(rng, i)
         out = step(params, stats, prev, cur, node_type, mask, train=train, rng=key)
-        return (cur, out.positions), (out.positions, out.output)
+        nxt, corrections = (out.positions, {}) if guards is None else guards.apply(out.positions)
+        return (cur, nxt), (nxt, out.output, corrections)
 
-    _, (positions, outputs) = jax.lax.scan(body, (x_prev, x_cur), jnp.arange(n_steps))
-    return positions, outputs
+    _, (positions, outputs, corrections) = jax.lax.scan(body, (x_prev, x_cur),
+                                                        jnp.arange(n_steps))
+    return positions, outputs, corrections
 
 
-def _rollout_impl(step, params, stats, x0_prev, x0, node_type, mask, n_steps):
-    return unroll(step, params, stats, x0_prev, x0, node_type, mask, n_steps)[0]
+def _rollout_impl(step, params, stats, x0_prev, x0, node_type, mask, n_steps, guards=None):
+    positions, _, corrections = _scan(step, params, stats, x0_prev, x0, node_type, mask,
+                                      n_steps, guards=guards)
+    return positions, corrections
 
 
 rollout_jit = jax.jit(_rollout_impl, static_argnames=("step", "n_steps"))
-"""The compiled rollout ``(step, params, stats, x0_prev, x0, node_type, mask, n_steps) ->
-trajectory [n_steps, n_nodes, 3]``; one compilation per (step, shapes, n_steps).
+"""The compiled rollout ``(step, params, stats, x0_prev, x0, node_type, mask, n_steps, guards)
+-> (trajectory [n_steps, n_nodes, 3], corrections {guard: [n_steps, n_nodes]})``; ``guards``
+is a :class:`~thrombojax.simulator.guard_set.GuardSet` or ``None`` (then ``corrections`` is
+empty). One compilation per (step, shapes, n_steps, guard switches).
 ``rollout_jit._cache_size()`` counts the compilations."""
 
 
@@ -92,6 +117,8 @@ def rollout(
     node_type: jax.Array,
     mask: jax.Array,
     n_steps: int,
+    *,
+    guards: GuardSet | None = None,
 ) -> jax.Array:
     """Autoregressive rollout as one compiled ``jax.lax.scan`` over the learned step.
 
@@ -107,9 +134,32 @@ def rollout(
         x0: ``[n_nodes, 3]`` scaled positions s_{t0}.
         node_type: ``[n_nodes]`` NodeType values. mask: ``[n_nodes]`` real-node mask.
         n_steps: number of predicted frames (static).
+        guards: physics guards applied after every step (``None``: the model alone).
     Returns:
         ``[n_steps, n_nodes, 3]`` predicted s_{t0+1} ... s_{t0+n_steps} (device array); vessel and
         padded nodes equal ``x0`` exactly.
+    """
+    return rollout_with_corrections(model, params, stats, x0_prev, x0, node_type, mask, n_steps,
+                                    guards=guards)[0]
+
+
+def rollout_with_corrections(
+    model: Surrogate | LearnedStep,
+    params: dict,
+    stats: TargetStats,
+    x0_prev: jax.Array,
+    x0: jax.Array,
+    node_type: jax.Array,
+    mask: jax.Array,
+    n_steps: int,
+    *,
+    guards: GuardSet | None = None,
+) -> tuple[jax.Array, dict[str, jax.Array]]:
+    """:func:`rollout` that also returns how far each guard moved every node at every step.
+
+    Returns:
+        ``(trajectory [n_steps, n_nodes, 3], {guard name: correction [n_steps, n_nodes]})``
+        (distances in the rollout's coordinates; empty without guards).
     """
     step = as_step(model)
     if int(n_steps) < 1:
@@ -117,7 +167,7 @@ def rollout(
     return rollout_jit(
         step, params, stats,
         jnp.asarray(x0_prev, jnp.float32), jnp.asarray(x0, jnp.float32),
-        jnp.asarray(node_type, jnp.int32), jnp.asarray(mask, bool), int(n_steps),
+        jnp.asarray(node_type, jnp.int32), jnp.asarray(mask, bool), int(n_steps), guards,
     )
 
 

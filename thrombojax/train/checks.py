@@ -41,6 +41,8 @@ _RULES: dict[str, tuple[str, float, bool, bool]] = {
     "skip_frames": ("int", 0, True, False),
     "checkpoint_every": ("int", 0, True, False),
     "rollout_steps": ("int", 1, True, False),
+    "pushforward_steps": ("int", 0, True, False),
+    "curriculum_epochs": ("float", 0.0, True, False),
 }
 
 

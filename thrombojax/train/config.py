@@ -47,14 +47,23 @@ class TrainConfig:
         bary_radius: radius of the graph whose triangles are sampled (``None``: model radius).
         bary_max_neighbors: neighbour cap of that graph (``K``; ``K (K - 1) / 2`` triangle
             candidates per node).
-        noise_std, noise_gamma: training noise on s_t (MeshGraphNets' recipe; 0: off).
+        noise_std: training noise on s_t, in vessel radii (the dataset's radius,
+            :func:`thrombojax.data.radius.vessel_radius`, converted to scaled coordinates);
+            MeshGraphNets' recipe, learning-to-simulate's random walk with one velocity.
+        noise_gamma: fraction of the noise the model learns to remove from the next position.
         seed: initialisation, data order, augmentations.
         split_seed: which simulations are validation / test.
         n_val, n_test: simulations held out for validation / test.
+        train_sims, val_sims, test_sims: a split by name instead (any of them given: the
+            named simulations; training defaults to every simulation not named elsewhere).
         skip_frames: first frames never used as the frame t of a window (default 0: every
             window, the study's single-step setting).
         rollout_steps: k of the k-step unrolled loss (1: the single-step loss; windows of
-            ``k + 2`` frames).
+            ``pushforward_steps + k + 2`` frames).
+        pushforward_steps: steps applied without gradients before the loss steps
+            (push-forward training; 0: off).
+        curriculum_epochs: grow k linearly from 1 to ``rollout_steps`` over this many epochs
+            (0: k from the start). Validation always uses the final k.
         tiny: start from the model's tiny config (tests, smoke runs).
         model_config: overrides of the model config fields (architecture, graph radius).
         checkpoint_every: also save the last checkpoint every this many steps (0: each epoch).
@@ -77,13 +86,23 @@ class TrainConfig:
     split_seed: int = 0
     n_val: int = 2
     n_test: int = 1
+    train_sims: tuple[str, ...] = ()
+    val_sims: tuple[str, ...] = ()
+    test_sims: tuple[str, ...] = ()
     skip_frames: int = 0
     rollout_steps: int = 1
+    pushforward_steps: int = 0
+    curriculum_epochs: float = 0.0
     tiny: bool = False
     model_config: dict = dataclasses.field(default_factory=dict)
     checkpoint_every: int = 0
 
     def __post_init__(self) -> None:
+        for name in ("train_sims", "val_sims", "test_sims"):
+            value = getattr(self, name)
+            if isinstance(value, str) or not all(isinstance(v, str) for v in value):
+                raise ConfigError(f"{name} must be a list of simulation names, got {value!r}")
+            object.__setattr__(self, name, tuple(value))
         check_train_values(self)  # types, finiteness, ranges of every field
         if self.epochs < 1:
             raise ConfigError(f"epochs must be >= 1, got {self.epochs}")

@@ -35,8 +35,9 @@ from thrombojax.data.batching import (
     make_batch,
     padding_budget,
 )
+from thrombojax.data.radius import vessel_radius
 from thrombojax.data.scaling import fit_scaling
-from thrombojax.data.splits import split_simulations
+from thrombojax.data.splits import make_split, split_simulations
 from thrombojax.errors import ConfigError, OutputError, ThrombojaxError
 from thrombojax.io.hdf5 import open_dataset
 from thrombojax.models.registry import canonical_name, config_to_dict, create_model, get_config
@@ -71,7 +72,7 @@ from thrombojax.train.step import (
     shard_batch,
 )
 
-__all__ = ["train", "TrainingDivergedError", "plot_losses"]
+__all__ = ["train", "TrainingDivergedError", "plot_losses", "rollout_steps_at"]
 
 _EVAL_EPOCH = 2**31 - 1  # seed stream of the validation subsets, never a training epoch
 
@@ -164,9 +165,13 @@ def train(
     fingerprint = dataset_fingerprint(ds)
     if saved is not None:
         check_resume_dataset(saved, fingerprint, scaling.to_dict(), dataset_path, out_dir)
-    split = split_simulations(list(ds.names), n_test=cfg.n_test, n_val=cfg.n_val,
-                              seed=cfg.split_seed)
-    length = cfg.rollout_steps + 2
+    if cfg.train_sims or cfg.val_sims or cfg.test_sims:
+        split = make_split(list(ds.names), test=cfg.test_sims, val=cfg.val_sims,
+                           train=cfg.train_sims or None)
+    else:
+        split = split_simulations(list(ds.names), n_test=cfg.n_test, n_val=cfg.n_val,
+                                  seed=cfg.split_seed)
+    length = cfg.pushforward_steps + cfg.rollout_steps + 2
     train_store = load_store(ds, split.train, scaling, skip=cfg.skip_frames, length=length)
     val_store = (load_store(ds, split.val, scaling, skip=cfg.skip_frames, length=length)
                  if split.val else None)
@@ -218,8 +223,17 @@ def train(
         radius=cfg.bary_radius or model_cfg.radius, max_neighbors=cfg.bary_max_neighbors,
     )
     augment = jax.jit(functools.partial(augment_batch, config=aug_cfg))
-    train_step = make_train_step(step_fn, tx, stats, noise_std=cfg.noise_std,
-                                 noise_gamma=cfg.noise_gamma, k=cfg.rollout_steps)
+    noise_std = cfg.noise_std * vessel_radius(ds) / float(scaling.scale)  # radii -> scaled
+    train_steps: dict[int, Callable] = {}
+
+    def train_step_at(epoch: int) -> Callable:
+        k = rollout_steps_at(epoch, cfg.rollout_steps, cfg.curriculum_epochs)
+        if k not in train_steps:  # one compilation per k of the curriculum
+            train_steps[k] = make_train_step(step_fn, tx, stats, noise_std=noise_std,
+                                             noise_gamma=cfg.noise_gamma, k=k,
+                                             pushforward=cfg.pushforward_steps)
+        return train_steps[k]
+
     eval_step = make_eval_step(step_fn, stats, k=cfg.rollout_steps)
     val_batches = _eval_batches(val_store, budget, batch_size, cfg) if val_store else []
     state = replicate(state, mesh)
@@ -241,7 +255,7 @@ def train(
             aug_key, step_key = jax.random.split(jax.random.fold_in(run_key, step))
             host_batch = batch_of(plan[position], epoch=epoch, position=position)
             batch = augment(aug_key, shard_batch(host_batch, mesh))
-            new_state, metrics = train_step(state, batch, step_key)
+            new_state, metrics = train_step_at(epoch)(state, batch, step_key)
             metrics = {k: float(v) for k, v in jax.device_get(metrics).items()}
             if not math.isfinite(metrics["loss"]):
                 _log(out_dir, {"event": "nan", "step": step + 1, "epoch": epoch, **metrics})
@@ -279,6 +293,14 @@ def train(
     if jax.process_index() == 0:
         plot_losses(out_dir / "metrics.jsonl", out_dir / "loss.png")
     return load_trained(out_dir, which="best")
+
+
+def rollout_steps_at(epoch: int, k: int, curriculum_epochs: float) -> int:
+    """k of the unrolled loss in ``epoch``: grows linearly from 1 to ``k`` over
+    ``curriculum_epochs`` epochs (``1 + floor(epoch * k / curriculum_epochs)``), else ``k``."""
+    if curriculum_epochs <= 0:
+        return k
+    return int(max(1, min(k, 1 + math.floor(epoch * k / curriculum_epochs))))
 
 
 def _eval_batches(store, budget: int, batch_size: int, cfg: TrainConfig) -> list:

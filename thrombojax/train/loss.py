@@ -17,6 +17,12 @@ gradients through every step). The target of step ``j`` is the acceleration that
 rollout back onto the true frame ``s_{t+j+1}`` from where the rollout stands, so ``k = 1`` is
 exactly the single-step loss.
 
+Push-forward training (Brandstetter, Worrall and Welling 2022, "Message passing neural PDE
+solvers"): with ``pushforward = p > 0`` the step is first applied ``p`` times from
+``(s_{t-1}, s_t)`` *without* gradients, and the loss steps start from the model's own prediction
+``(s^_{t+p-1}, s^_{t+p})``; the model learns to correct the input distribution it creates in a
+rollout, at the cost of one forward pass per pushed step.
+
 Sums and counts are returned (not means) so a batch, possibly split over devices, pools all its
 clot nodes: ``sum(sq) / sum(count)``.
 """
@@ -42,6 +48,7 @@ def window_loss_terms(
     mask: jax.Array,
     *,
     k: int = 1,
+    pushforward: int = 0,
     train: bool,
     rng: jax.Array | None,
 ) -> dict[str, jax.Array]:
@@ -50,16 +57,28 @@ def window_loss_terms(
     Args:
         step: the learned simulator (:func:`thrombojax.simulator.step.make_step`).
         params: the surrogate's variables. stats: acceleration normalisation statistics.
-        frames: ``[W, n_nodes, 3]`` (s_{t-1}, s_t, ..., s_{t+W-2}) scaled, ``W >= k + 2``.
+        frames: ``[W, n_nodes, 3]`` (s_{t-1}, s_t, ..., s_{t+W-2}) scaled,
+            ``W >= pushforward + k + 2`` (later frames are not used).
         node_type: ``[n_nodes]`` NodeType. mask: ``[n_nodes]`` real nodes.
-        k: steps unrolled (static, ``1 <= k <= W - 2``).
+        k: steps unrolled with gradients (static, >= 1).
+        pushforward: steps applied first without gradients (static, >= 0).
         train: model in training mode (dropout); rng: its PRNG key.
     Returns:
         ``{"loss_sum", "mse_sum", "count"}``: squared errors summed over clot nodes and averaged
         over steps and x, y, z; the number of clot nodes.
     """
-    if not 1 <= k <= frames.shape[0] - 2:
-        raise ValueError(f"k = {k} steps need a window of >= {k + 2} frames, got {frames.shape[0]}")
+    need = pushforward + k + 2
+    if k < 1 or pushforward < 0 or frames.shape[0] < need:
+        raise ValueError(f"k = {k} loss steps after {pushforward} push-forward steps need a "
+                         f"window of >= {need} frames, got {frames.shape[0]}")
+    if pushforward:
+        pushed, _ = unroll(step, params, stats, frames[0], frames[1], node_type, mask,
+                           pushforward, train=train,
+                           rng=None if rng is None else jax.random.fold_in(rng, 10_007))
+        pushed = jax.lax.stop_gradient(pushed)
+        start = jnp.concatenate([frames[:2], pushed])[-2:]
+        frames = jnp.concatenate([start, frames[pushforward + 2:need]])
+    frames = frames[:k + 2]
     if k == 1:
         out = step(params, stats, frames[0], frames[1], node_type, mask, train=train, rng=rng)
         positions, outputs = out.positions[None], out.output[None]

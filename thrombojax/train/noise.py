@@ -30,19 +30,23 @@ def add_training_noise(
     std: float,
     gamma: float = 0.1,
 ) -> jax.Array:
-    """Corrupt s_t of one window and correct its target s_{t+1}.
+    """Corrupt s_t of one window and correct its targets s_{t+1}, s_{t+2}, ...
+
+    With one input velocity this is also learning-to-simulate's random-walk noise (the position
+    noise of the earliest input frame is 0, of the last one ``N(0, std)``); its target correction
+    is ``gamma = 0``. Later frames of a longer window (k-step loss) are shifted like s_{t+1}.
 
     Args:
         key: PRNG key.
-        frames: ``[3, n_nodes, 3]`` the window (s_{t-1}, s_t, s_{t+1}), scaled coordinates.
+        frames: ``[W, n_nodes, 3]`` the window (s_{t-1}, s_t, s_{t+1}, ...), scaled coordinates.
         node_type: ``[n_nodes]`` NodeType values. mask: ``[n_nodes]`` real-node mask.
         std: noise standard deviation (0 returns ``frames`` unchanged).
         gamma: fraction of the noise the model learns to remove from the next position.
     Returns:
-        ``[3, n_nodes, 3]`` the noisy window (s_{t-1}, s_t + n, s_{t+1} + (1 - gamma) n).
+        ``[W, n_nodes, 3]`` the noisy window (s_{t-1}, s_t + n, s_{t+1} + (1 - gamma) n, ...).
     """
     if std == 0.0:
         return frames
     moving = clot_mask(node_type, mask)[:, None]
     noise = jnp.where(moving, std * jax.random.normal(key, frames.shape[1:], frames.dtype), 0.0)
-    return jnp.stack([frames[0], frames[1] + noise, frames[2] + (1.0 - gamma) * noise])
+    return frames.at[1].add(noise).at[2:].add((1.0 - gamma) * noise)

@@ -97,6 +97,7 @@ def batch_loss(
     noise_std: float = 0.0,
     noise_gamma: float = 0.1,
     k: int = 1,
+    pushforward: int = 0,
 ) -> tuple[jax.Array, dict[str, jax.Array]]:
     """Loss of a batch pooled over its clot nodes, and metrics.
 
@@ -107,6 +108,7 @@ def batch_loss(
         train: training mode (noise, dropout).
         noise_std, noise_gamma: training noise (:mod:`thrombojax.train.noise`).
         k: steps of the unrolled loss (1: the single-step loss).
+        pushforward: steps applied first without gradients (push-forward training).
     Returns:
         ``(loss, metrics)``: ``loss`` is the normalised-acceleration MSE; ``metrics`` holds
         ``loss``, ``mse`` (the study's metric, scaled coordinates) and ``nodes``.
@@ -124,7 +126,8 @@ def batch_loss(
                     noise_key, frames, node_type, mask, std=noise_std, gamma=noise_gamma
                 )
         return window_loss_terms(
-            step, params, stats, frames, node_type, mask, k=k, train=train, rng=model_key
+            step, params, stats, frames, node_type, mask, k=k, pushforward=pushforward,
+            train=train, rng=model_key,
         )
 
     if keys is None:
@@ -148,6 +151,7 @@ def make_train_step(
     noise_std: float = 0.0,
     noise_gamma: float = 0.1,
     k: int = 1,
+    pushforward: int = 0,
     donate: bool = True,
 ) -> Callable[[TrainState, Any, jax.Array], tuple[TrainState, dict]]:
     """Build the jitted ``train_step(state, batch, rng) -> (state, metrics)``.
@@ -158,6 +162,7 @@ def make_train_step(
         stats: target statistics (closed over, constants of the compiled step).
         noise_std, noise_gamma: training noise (0: off).
         k: steps of the unrolled loss (1: single step).
+        pushforward: steps applied first without gradients (push-forward training).
         donate: donate the old state's buffers to the new one.
     Returns:
         The jitted step. ``metrics`` adds ``grad_norm`` and ``lr``-independent scalars.
@@ -169,7 +174,7 @@ def make_train_step(
         def loss_fn(params):
             return batch_loss(
                 learned, params, stats, batch, rng, train=True,
-                noise_std=noise_std, noise_gamma=noise_gamma, k=k,
+                noise_std=noise_std, noise_gamma=noise_gamma, k=k, pushforward=pushforward,
             )
 
         (_, metrics), grads = jax.value_and_grad(loss_fn, has_aux=True)(state.params)

@@ -1,0 +1,251 @@
+"""The stability ladder: one small model, one CPU budget per rung, each rung adds one technique.
+
+    python experiments/ladder.py --dataset data/bendvessel.h5 --out experiments/results/ladder
+
+Rungs (cumulative): baseline (single-step loss) -> + input noise -> + push-forward ->
++ k-step loss with a curriculum -> + guards in the rollout (same model) -> + rotation
+augmentation. Every rung trains the same small MeshGraphNet for the same wall-clock budget (the
+epoch count is calibrated on this machine by timing one epoch), then is measured on held-out
+simulations (the split is by name: the last rotation is outside the training range):
+
+- single-step MSE over all windows and over the rollout phase (frames >= the dataset's
+  ``skip_frames``), as a ratio to constant velocity (CV);
+- a rollout from ``skip_frames`` to the last frame: MSE@10, MSE@full (in vessel radii squared
+  and as a ratio to CV), the final clot-centroid error (radii), the largest share of clot nodes
+  outside the vessel (``thrombojax.eval.metrics``), and the guards' largest correction.
+
+Resumable: a rung whose ``result.json`` exists is skipped; a rung whose training was killed
+resumes from its last checkpoint. Writes ``table.md``, ``ladder.json`` and
+``error_per_step.png`` with the command, device, versions, date and machine load.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import pathlib
+import shutil
+import sys
+import time
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+from thrombojax import study  # noqa: E402
+from thrombojax.data.radius import vessel_radius  # noqa: E402
+from thrombojax.eval.metrics import (  # noqa: E402
+    centroid_error,
+    fit_vessel_wall,
+    fraction_outside,
+    mse_per_step,
+)
+from thrombojax.eval.single_step import scaled_simulation, single_step_errors  # noqa: E402
+from thrombojax.eval.tables import environment, markdown_table  # noqa: E402
+from thrombojax.io.hdf5 import open_dataset  # noqa: E402
+from thrombojax.models.registry import create_model, identity_stats  # noqa: E402
+from thrombojax.simulator.guard_set import build_guards  # noqa: E402
+from thrombojax.simulator.rollout import (  # noqa: E402
+    constant_velocity_rollout,
+    rollout_with_corrections,
+)
+from thrombojax.simulator.step import make_step  # noqa: E402
+from thrombojax.train.loop import train  # noqa: E402
+from thrombojax.train.state import latest_step, load_trained  # noqa: E402
+from thrombojax.types import clot_mask  # noqa: E402
+
+SMALL_MGN = {"hidden": 32, "processor_size": 5, "max_neighbors": 12}
+COMMON = {"batch_size": 4, "max_rotation": 0.0, "warmup_epochs": 2.0,
+          "model_config": SMALL_MGN}
+NOISE = {"noise_std": 0.01}  # vessel radii
+
+
+@dataclasses.dataclass(frozen=True)
+class Rung:
+    """One rung: training overrides, whether the rollout is guarded, which run it reuses."""
+
+    name: str
+    train: dict
+    guards: bool = False
+    reuse: str | None = None  # evaluate another rung's trained model
+
+
+RUNGS: tuple[Rung, ...] = (
+    Rung("baseline", {}),
+    Rung("noise", NOISE),
+    Rung("pushforward", {**NOISE, "pushforward_steps": 1}),
+    Rung("kstep", {**NOISE, "pushforward_steps": 1, "rollout_steps": 3, "curriculum_epochs": 6}),
+    Rung("guards", {}, guards=True, reuse="kstep"),
+    Rung("rotation", {**NOISE, "pushforward_steps": 1, "rollout_steps": 3,
+                      "curriculum_epochs": 6, "max_rotation": np.pi}, guards=True),
+)
+
+
+def _train_rung(rung: Rung, data: str, folder: pathlib.Path, split: dict, minutes: float,
+                max_epochs: int) -> pathlib.Path:
+    run = folder / "run"
+    cfg = {**COMMON, **rung.train, **split}
+    if latest_step(run / "checkpoints" / "last") is not None:
+        info = json.loads((run / "config.json").read_text())
+        if latest_step(run / "checkpoints" / "best") is not None and \
+                _finished(run, info["total_steps"]):
+            return run
+        train(data, "mgn", run, resume=True, progress=False)
+        return run
+    calib = folder / "calibration"
+    stamps: list[float] = []
+    train(data, "mgn", calib, epochs=1, progress=False, force=True,
+          callback=lambda step, m: stamps.append(time.perf_counter()), **cfg)
+    shutil.rmtree(calib)
+    epoch_s = (stamps[-1] - stamps[0]) / max(len(stamps) - 1, 1) * len(stamps)
+    epochs = int(min(max(minutes * 60 // max(epoch_s, 1e-9), 2), max_epochs))
+    print(f"  {rung.name}: {epoch_s:.1f} s per epoch -> {epochs} epochs", flush=True)
+    train(data, "mgn", run, epochs=epochs, progress=False, **cfg)
+    return run
+
+
+def _finished(run: pathlib.Path, total_steps: int) -> bool:
+    lines = (run / "metrics.jsonl").read_text().splitlines()
+    return any(json.loads(ln).get("step") == total_steps for ln in lines if ln.strip())
+
+
+def _evaluate(run: pathlib.Path, data: str, guards: bool) -> dict:
+    trained = load_trained(run)
+    ds = open_dataset(data)
+    skip = max(study.skip_frames(ds), 1)
+    r = vessel_radius(ds) / float(trained.scaling.scale)  # one radius, scaled coordinates
+    step, cv = make_step(trained.model), make_step(create_model("constant_velocity"))
+    per_sim = {}
+    for name in trained.split.test:
+        pos, nt = scaled_simulation(ds, name, trained.scaling)
+        m1 = single_step_errors(step, trained.params, trained.stats, pos, nt)
+        c1 = single_step_errors(cv, {}, identity_stats(), pos, nt)
+        phase = np.arange(1, pos.shape[0] - 1) >= skip
+        n = pos.shape[0] - 1 - skip
+        mask = np.ones(len(nt), bool)
+        g = build_guards(pos[0], nt, pos[skip], nt, radius=r,
+                         wall_cells=ds[name].wall_cells) if guards else None
+        pred, corr = rollout_with_corrections(trained.model, trained.params, trained.stats,
+                                              pos[skip - 1], pos[skip], nt, mask, n, guards=g)
+        pred = np.asarray(pred)
+        true = pos[skip + 1:]
+        base = constant_velocity_rollout(pos[skip - 1], pos[skip], nt, mask, n)
+        clot = clot_mask(nt)
+        wall = fit_vessel_wall(pos[0], nt, wall_cells=ds[name].wall_cells)
+        mse, mse_cv = mse_per_step(pred, true, clot) / r**2, mse_per_step(base, true, clot) / r**2
+        per_sim[name] = {
+            "mse1_all": float(m1.mean()) / r**2, "mse1_all_cv": float(c1.mean()) / r**2,
+            "mse1_phase": float(m1[phase].mean()) / r**2,
+            "mse1_phase_cv": float(c1[phase].mean()) / r**2,
+            "mse10": float(mse[:10].mean()), "mse10_cv": float(mse_cv[:10].mean()),
+            "mse_full": float(mse.mean()), "mse_full_cv": float(mse_cv.mean()),
+            "final_centroid_r": float(centroid_error(pred, true, clot)[-1]) / r,
+            "final_centroid_cv_r": float(centroid_error(base, true, clot)[-1]) / r,
+            "max_outside": float(fraction_outside(wall, pred, clot).max()),
+            "max_outside_cv": float(fraction_outside(wall, base, clot).max()),
+            "max_correction_r": max((float(np.asarray(c).max()) for c in corr.values()),
+                                    default=0.0) / r,
+            "mse_per_step": mse.tolist(), "mse_per_step_cv": mse_cv.tolist(),
+        }
+    keys = [k for k in next(iter(per_sim.values())) if not k.startswith("mse_per_step")]
+    mean = {k: float(np.mean([s[k] for s in per_sim.values()])) for k in keys}
+    for k in ("max_outside", "max_outside_cv", "max_correction_r"):
+        mean[k] = float(np.max([s[k] for s in per_sim.values()]))
+    return {"simulations": per_sim, "mean": mean, "skip_frames": skip,
+            "epochs": json.loads((run / "config.json").read_text())["train"]["epochs"]}
+
+
+def _table(results: dict) -> str:
+    rows = []
+    for name, res in results.items():
+        m = res["mean"]
+        rows.append([name, f"{m['mse1_all'] / m['mse1_all_cv']:.2f}",
+                     f"{m['mse1_phase'] / m['mse1_phase_cv']:.2f}", m["mse10"], m["mse_full"],
+                     f"{m['mse_full'] / m['mse_full_cv']:.2f}", f"{m['final_centroid_r']:.2f}",
+                     f"{100 * m['max_outside']:.0f} %", f"{m['max_correction_r']:.2f}",
+                     res["epochs"]])
+    cv = next(iter(results.values()))["mean"]
+    rows.append(["constant velocity", "1", "1", cv["mse10_cv"], cv["mse_full_cv"], "1",
+                 f"{cv['final_centroid_cv_r']:.2f}", f"{100 * cv['max_outside_cv']:.0f} %",
+                 "-", "-"])
+    return markdown_table(["rung", "1-step MSE / CV (all)", "1-step MSE / CV (rollout phase)",
+                           "MSE@10 (r^2)", "MSE@full (r^2)", "MSE@full / CV",
+                           "final centroid error (r)", "max clot outside",
+                           "largest guard correction (r)", "epochs"], rows)
+
+
+def _plot(results: dict, path: pathlib.Path) -> None:
+    fig, ax = plt.subplots(figsize=(7, 4))
+    for name, res in results.items():
+        curve = np.mean([s["mse_per_step"] for s in res["simulations"].values()], axis=0)
+        ax.plot(np.arange(1, len(curve) + 1), curve, label=name)
+    cv = np.mean([s["mse_per_step_cv"] for s in next(iter(results.values()))["simulations"]
+                  .values()], axis=0)
+    ax.plot(np.arange(1, len(cv) + 1), cv, "k--", label="constant velocity")
+    ax.set_yscale("log")
+    ax.set_xlabel("rollout step")
+    ax.set_ylabel("MSE of clot nodes (vessel radii$^2$)")
+    ax.set_title("Stability ladder: held-out BendVessel simulations")
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--dataset", required=True, help="BendVessel dataset (.h5)")
+    parser.add_argument("--out", required=True, help="results folder (resumable)")
+    parser.add_argument("--minutes", type=float, default=6.0, help="training budget per rung")
+    parser.add_argument("--max-epochs", type=int, default=200)
+    parser.add_argument("--test", default="bendvessel_005,bendvessel_012,bendvessel_019",
+                        help="held-out simulations (comma-separated)")
+    parser.add_argument("--val", default="bendvessel_009", help="validation simulations")
+    parser.add_argument("--rungs", default=",".join(r.name for r in RUNGS))
+    args = parser.parse_args(argv)
+    out = pathlib.Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    split = {"test_sims": args.test.split(","), "val_sims": args.val.split(",")}
+    wanted = args.rungs.split(",")
+    results = {}
+    for rung in RUNGS:
+        if rung.name not in wanted:
+            continue
+        folder = out / rung.name
+        done = folder / "result.json"
+        if done.is_file():
+            results[rung.name] = json.loads(done.read_text())
+            continue
+        folder.mkdir(exist_ok=True)
+        t = time.perf_counter()
+        run = (out / rung.reuse / "run") if rung.reuse else _train_rung(
+            rung, args.dataset, folder, split, args.minutes, args.max_epochs)
+        res = _evaluate(run, args.dataset, rung.guards)
+        res.update(rung=dataclasses.asdict(rung) | {"train": {k: str(v) for k, v in
+                                                               rung.train.items()}},
+                   seconds=time.perf_counter() - t)
+        done.write_text(json.dumps(res, indent=1))
+        results[rung.name] = res
+        print(f"  {rung.name}: MSE@full / CV = "
+              f"{res['mean']['mse_full'] / res['mean']['mse_full_cv']:.2f}", flush=True)
+    table = _table(results)
+    env = environment()
+    (out / "table.md").write_text(
+        "# Stability ladder (BendVessel, held-out simulations "
+        f"{', '.join(split['test_sims'])})\n\n{table}\n"
+        f"Errors in vessel radii (r); ratios to constant velocity (CV). Budget "
+        f"{args.minutes:g} CPU minutes of training per rung.\n\n"
+        + "".join(f"- {k}: {v}\n" for k, v in env.items()))
+    (out / "ladder.json").write_text(json.dumps({"environment": env, "results": results},
+                                                indent=1))
+    _plot(results, out / "error_per_step.png")
+    print(table)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

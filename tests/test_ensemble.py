@@ -1,0 +1,348 @@
+"""Ensembles: M rollouts in one compiled program, spread-versus-error measures, trained members."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import shutil
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from thrombojax.errors import ConfigError, DatasetError
+from thrombojax.eval.uncertainty import (
+    CURVE_KEYS,
+    node_errors,
+    uncertainty_curves,
+    uncertainty_report,
+    uncertainty_summary,
+)
+from thrombojax.simulator.ensemble import (
+    ensemble_jit,
+    ensemble_rollout,
+    ensemble_stats,
+    stack_params,
+    stochastic_rollout,
+)
+from thrombojax.simulator.rollout import rollout
+from thrombojax.types import NodeType, TargetStats
+
+TRACES: list[int] = []  # the fake model appends here each time its graph is traced
+
+
+@dataclasses.dataclass(frozen=True)
+class FakeSurrogate:
+    """A tiny Surrogate: neighbour mean within r and a linear update (as tests/test_rollout.py)."""
+
+    name: str = "fake_ensemble"
+    radius: float = 0.5
+
+    def build_graph(self, inputs):
+        TRACES.append(1)
+        d = jnp.linalg.norm(inputs.positions[:, None] - inputs.positions[None], axis=-1)
+        return {"adj": (d < self.radius) & inputs.mask[:, None] & inputs.mask[None]}
+
+    def init(self, rng, inputs, graph):
+        k1, k2 = jax.random.split(rng)
+        return {"w": 0.1 * jax.random.normal(k1, (3, 3)), "b": 0.01 * jax.random.normal(k2, (3,))}
+
+    def apply(self, params, inputs, graph, *, train=False, rng=None):
+        adj = graph["adj"].astype(jnp.float32)
+        nbr_mean = adj @ inputs.positions / jnp.maximum(adj.sum(1, keepdims=True), 1.0)
+        return (nbr_mean - inputs.positions) @ params["w"] + inputs.velocity + params["b"]
+
+
+def _state(n=40, seed=0):
+    rng = np.random.default_rng(seed)
+    x_cur = rng.uniform(-1, 1, (n, 3)).astype(np.float32)
+    x_prev = x_cur - 0.01 * rng.normal(size=(n, 3)).astype(np.float32)
+    node_type = np.where(np.arange(n) % 3 == 0, NodeType.CLOT, NodeType.VESSEL).astype(np.int32)
+    x_prev[node_type == NodeType.VESSEL] = x_cur[node_type == NodeType.VESSEL]
+    mask = np.ones(n, bool)
+    mask[-3:] = False
+    stats = TargetStats(mean=jnp.full(3, 1e-3), std=jnp.full(3, 0.02))
+    return x_prev, x_cur, node_type, mask, stats
+
+
+def _params(model, seed):
+    return model.init(jax.random.key(seed), None, None)
+
+
+def test_identical_members_give_the_single_rollout_and_zero_spread():
+    model = FakeSurrogate()
+    x_prev, x_cur, node_type, mask, stats = _state()
+    p = _params(model, 0)
+    single = np.asarray(rollout(model, p, stats, x_prev, x_cur, node_type, mask, 6))
+    ens = ensemble_rollout(model, stack_params([p, p, p]), stats, x_prev, x_cur, node_type,
+                           mask, 6)
+    assert ens.members.shape == (3, 6, 40, 3) and ens.n_members == 3
+    assert ens.mean.shape == (6, 40, 3) and ens.spread.shape == (6, 40)
+    assert np.array_equal(np.asarray(ens.mean), single)
+    assert np.array_equal(np.asarray(ens.spread), np.zeros((6, 40)))
+
+
+def test_different_members_spread_on_clot_only_and_members_are_their_rollouts():
+    model = FakeSurrogate()
+    x_prev, x_cur, node_type, mask, stats = _state()
+    plist = [_params(model, s) for s in (0, 1, 2)]
+    ens = ensemble_rollout(model, stack_params(plist), stats, x_prev, x_cur, node_type, mask, 5)
+    members = np.asarray(ens.members)
+    for i, p in enumerate(plist):  # member i is the rollout of params i
+        np.testing.assert_allclose(
+            members[i], np.asarray(rollout(model, p, stats, x_prev, x_cur, node_type, mask, 5)),
+            rtol=0, atol=1e-5)
+    clot = (node_type == NodeType.CLOT) & mask
+    spread = np.asarray(ens.spread)
+    assert (spread[:, clot] > 0).all()
+    assert np.array_equal(spread[:, ~clot], np.zeros((5, int((~clot).sum()))))
+    assert np.array_equal(np.asarray(ens.mean)[:, ~clot],
+                          np.broadcast_to(x_cur[~clot], (5, int((~clot).sum()), 3)))
+    # spread = sqrt(trace(population covariance) / 3)
+    want = np.sqrt(members.astype(np.float64).var(axis=0).mean(axis=-1))
+    np.testing.assert_allclose(spread[:, clot], want[:, clot], rtol=1e-4, atol=1e-7)
+    np.testing.assert_allclose(np.asarray(ens.mean), members.mean(0), rtol=0, atol=1e-6)
+
+
+def test_compiled_once_for_all_members():
+    model = FakeSurrogate(radius=0.45)  # a step of its own: its own compilations
+    x_prev, x_cur, node_type, mask, stats = _state()
+    TRACES.clear()
+    size0 = ensemble_jit._cache_size()
+    stack = stack_params([_params(model, s) for s in range(4)])
+    ens = ensemble_rollout(model, stack, stats, x_prev, x_cur, node_type, mask, 4)
+    assert len(TRACES) == 1 and ensemble_jit._cache_size() == size0 + 1
+    stack2 = stack_params([_params(model, s) for s in range(4, 8)])
+    ens2 = ensemble_rollout(model, stack2, stats, x_prev + 0.1, x_cur + 0.1, node_type, mask, 4)
+    assert len(TRACES) == 1 and ensemble_jit._cache_size() == size0 + 1
+    assert not np.allclose(np.asarray(ens.mean), np.asarray(ens2.mean))
+
+
+def test_stochastic_rollout_perturbs_clot_starts_only():
+    model = FakeSurrogate()
+    x_prev, x_cur, node_type, mask, stats = _state()
+    p = _params(model, 0)
+    kw = dict(n_members=5, noise_std=1e-3, rng=jax.random.key(3))
+    ens = stochastic_rollout(model, p, stats, x_prev, x_cur, node_type, mask, 4, **kw)
+    again = stochastic_rollout(model, p, stats, x_prev, x_cur, node_type, mask, 4, **kw)
+    assert np.array_equal(np.asarray(ens.members), np.asarray(again.members))
+    assert ens.members.shape == (5, 4, 40, 3)
+    clot = (node_type == NodeType.CLOT) & mask
+    spread = np.asarray(ens.spread)
+    assert (spread[:, clot] > 0).all() and (spread[:, ~clot] == 0).all()
+    single = np.asarray(rollout(model, p, stats, x_prev, x_cur, node_type, mask, 4))
+    assert np.abs(np.asarray(ens.mean) - single)[:, clot].max() < 0.05
+    # stacked members plus perturbed starts: M starts, one per member
+    both = ensemble_rollout(model, stack_params([p, p]), stats, x_prev, x_cur, node_type, mask,
+                            4, noise_std=1e-3, rng=jax.random.key(0))
+    assert (np.asarray(both.spread)[:, clot] > 0).all()
+    with pytest.raises(ConfigError):
+        stochastic_rollout(model, p, stats, x_prev, x_cur, node_type, mask, 4, n_members=3,
+                           noise_std=0.0, rng=jax.random.key(0))
+    with pytest.raises(ConfigError):
+        ensemble_rollout(model, stack_params([p]), stats, x_prev, x_cur, node_type, mask, 4,
+                         noise_std=1e-3)
+    with pytest.raises(ConfigError):
+        ensemble_rollout(model, stack_params([p]), stats, x_prev, x_cur, node_type, mask, 0)
+
+
+def test_stack_params_refuses_different_trees():
+    a = {"w": jnp.ones((3, 3)), "b": jnp.zeros(3)}
+    stacked = stack_params([a, a])
+    assert stacked["w"].shape == (2, 3, 3) and stacked["b"].shape == (2, 3)
+    with pytest.raises(ConfigError, match="member 1 .*'w'"):
+        stack_params([a, {"w": jnp.ones((3, 4)), "b": jnp.zeros(3)}])
+    with pytest.raises(ConfigError, match="member 2"):
+        stack_params([a, a, {"w": jnp.ones((3, 3))}])
+    with pytest.raises(ConfigError):
+        stack_params([])
+
+
+def test_ensemble_stats_exact_zero_for_equal_members():
+    x = jnp.asarray(np.random.default_rng(0).normal(size=(1, 5, 7, 3)), jnp.float32) * 1e3 + 0.1
+    mean, spread = ensemble_stats(jnp.repeat(x, 3, axis=0))
+    assert np.array_equal(np.asarray(mean), np.asarray(x[0]))
+    assert np.array_equal(np.asarray(spread), np.zeros((5, 7)))
+
+
+def _constructed(factor: float, n_steps=4, n=30, seed=0):
+    """Mean, spread, truth with per-node error exactly ``factor * spread`` on clot nodes."""
+    rng = np.random.default_rng(seed)
+    mean = rng.normal(size=(n_steps, n, 3))
+    spread = rng.uniform(0.1, 1.0, (n_steps, n))
+    truth = mean + factor * spread[..., None] * rng.choice([-1.0, 1.0], size=(n_steps, n, 3))
+    node_type = np.full(n, NodeType.CLOT)
+    node_type[::4] = NodeType.VESSEL
+    truth[:, node_type == NodeType.VESSEL] += 50.0  # never counted
+    return mean, spread, truth, node_type
+
+
+def test_uncertainty_metrics_on_constructed_errors():
+    mean, spread, truth, node_type = _constructed(1.5)
+    clot = node_type == NodeType.CLOT
+    np.testing.assert_allclose(node_errors(mean, truth)[:, clot], 1.5 * spread[:, clot])
+    curves = uncertainty_curves(mean, spread, truth, node_type, scale=2.0)
+    assert set(curves) == set(CURVE_KEYS) and all(v.shape == (4,) for v in curves.values())
+    np.testing.assert_allclose(curves["spearman"], 1.0)
+    np.testing.assert_allclose(curves["pearson"], 1.0)
+    np.testing.assert_allclose(curves["calibration"], 1.5)
+    np.testing.assert_allclose(curves["rms_calibration"], 1.5)
+    np.testing.assert_allclose(curves["within_2_spread"], 1.0)
+    np.testing.assert_allclose(curves["error"], 2.0 * 1.5 * spread[:, clot].mean(1))
+    summary = uncertainty_summary(mean, spread, truth, node_type)
+    assert summary["spearman"] == pytest.approx(1.0) and summary["calibration"] == \
+        pytest.approx(1.5)
+    assert summary["within_2_spread"] == 1.0 and summary["n_clot_nodes"] == int(clot.sum())
+    json.dumps(summary, allow_nan=False)
+    # errors three times the spread: none within 2 spreads; a mask drops padded nodes
+    mask = np.ones(30, bool)
+    mask[-5:] = False
+    curves3, summary3 = uncertainty_report(*_constructed(3.0), mask=mask)
+    assert (curves3["within_2_spread"] == 0).all() and summary3["calibration"] == \
+        pytest.approx(3.0)
+    assert summary3["n_clot_nodes"] == int((clot & mask).sum())
+    # error unrelated to spread in rank: reversed ranks give -1
+    mean, spread, truth, node_type = _constructed(1.0)
+    rev = mean + (1.1 - spread)[..., None]
+    assert uncertainty_curves(mean, spread, rev, node_type)["spearman"] == \
+        pytest.approx(np.full(4, -1.0))
+
+
+def test_uncertainty_undefined_values_are_null_in_json():
+    mean, spread, truth, node_type = _constructed(1.0)
+    zero = np.zeros_like(spread)
+    curves = uncertainty_curves(mean, zero, truth, node_type)
+    assert np.isnan(curves["spearman"]).all() and np.isinf(curves["calibration"]).all()
+    summary = uncertainty_summary(mean, zero, truth, node_type)
+    assert summary["spearman"] is None and summary["calibration"] is None
+    json.dumps(summary, allow_nan=False)
+    with pytest.raises(DatasetError):
+        uncertainty_curves(mean, spread[:, :5], truth, node_type)
+    with pytest.raises(DatasetError):
+        uncertainty_curves(mean, spread, truth, np.full(30, NodeType.VESSEL))
+
+
+@pytest.fixture(scope="module")
+def tiny_ensemble(tmp_path_factory):
+    from thrombojax.eval.bench import synthetic_cloud
+    from thrombojax.io.hdf5 import Simulation, write_dataset
+    from thrombojax.train.ensemble import train_ensemble
+
+    root = tmp_path_factory.mktemp("ensemble")
+    sims = []
+    for i in range(4):
+        _, x, node_type = synthetic_cloud(96, clot_fraction=0.25, seed=i)
+        frames = np.repeat(x[None], 8, axis=0)
+        clot = node_type == NodeType.CLOT
+        t = np.arange(8, dtype=np.float32)[:, None]
+        frames[:, clot, 0] += 0.001 * t + 0.0002 * (1 + 0.1 * i) * t**2
+        sims.append(Simulation(name=f"sim_{i}", positions=frames * 10.0,
+                               node_type=node_type.astype(np.int8), attrs={"dt": 0.01}))
+    data = write_dataset(root / "tiny.h5", sims, name="tiny-ens", source="test")
+    ens = train_ensemble(data, "mgn", root / "ens", 2, seed=3, epochs=1, tiny=True, n_val=1,
+                         batch_size=2, warmup_epochs=0, progress=False)
+    return data, root, ens
+
+
+def test_train_and_load_ensemble(tiny_ensemble):
+    from thrombojax.io.hdf5 import open_dataset
+    from thrombojax.train.ensemble import load_ensemble
+
+    data, root, ens = tiny_ensemble
+    assert ens.n_members == 2 and ens.seeds == [3, 4]
+    assert [d.name for d in ens.directories] == ["member_0", "member_1"]
+    assert json.loads((root / "ens" / "ensemble.json").read_text())["seeds"] == [3, 4]
+    w = jax.tree.leaves(ens.params)
+    assert all(x.shape[0] == 2 for x in w)
+    assert any(not np.allclose(np.asarray(x[0]), np.asarray(x[1])) for x in w)
+    loaded = load_ensemble(root / "ens", which="last")
+    assert loaded.stats.to_dict() == ens.stats.to_dict() and loaded.n_members == 2
+    # the loaded ensemble rolls out on the dataset: members disagree on clot nodes only
+    sim = open_dataset(data)["sim_0"]
+    frames = np.asarray(ens.scaling.apply(sim.positions), np.float32)
+    mask = np.ones(sim.node_type.shape[0], bool)
+    out = ensemble_rollout(ens.model, ens.params, ens.stats, frames[3], frames[4],
+                           sim.node_type, mask, 3)
+    clot = sim.node_type == NodeType.CLOT
+    assert (np.asarray(out.spread)[:, clot] > 0).all() and (np.asarray(out.spread)[:, ~clot]
+                                                             == 0).all()
+    # a real model, two copies of member 0 (same compiled program): batched kernels may round
+    # differently from a single rollout, but agreeing members give their value exactly, spread 0
+    p0 = jax.tree.map(lambda x: x[0], ens.params)
+    same = ensemble_rollout(ens.model, stack_params([p0, p0]), ens.stats, frames[3], frames[4],
+                            sim.node_type, mask, 3)
+    assert np.array_equal(np.asarray(same.mean), np.asarray(same.members[0]))
+    assert np.array_equal(np.asarray(same.spread), np.zeros_like(np.asarray(same.spread)))
+    np.testing.assert_allclose(np.asarray(same.mean), np.asarray(out.members[0]), rtol=0,
+                               atol=1e-5)
+
+
+def _edit_config(run_dir, edit):
+    path = run_dir / "config.json"
+    config = json.loads(path.read_text())
+    edit(config)
+    path.write_text(json.dumps(config))
+
+
+def test_load_ensemble_refuses_mismatched_members(tiny_ensemble):
+    from thrombojax.train.ensemble import load_ensemble
+
+    _, root, _ = tiny_ensemble
+    cases = {
+        "scaling": lambda c: c["scaling"].update(scale=c["scaling"]["scale"] * 2),
+        "statistics": lambda c: c["stats"].update(velocity_std=c["stats"]["velocity_std"] * 2),
+        "model config": lambda c: c["train"]["model_config"].update(max_neighbors=6),
+    }
+    for what, edit in cases.items():
+        bad = root / f"bad_{what.replace(' ', '_')}"
+        shutil.copytree(root / "ens", bad)
+        _edit_config(bad / "member_1", edit)
+        with pytest.raises(ConfigError, match=f"member_1: ensemble member differs from "
+                                              f"member_0 in {what};") as err:
+            load_ensemble(bad)
+        assert "\n" not in str(err.value)
+    empty = root / "empty"
+    empty.mkdir()
+    with pytest.raises(ConfigError, match="not an ensemble"):
+        load_ensemble(empty)
+    partial = root / "partial"
+    shutil.copytree(root / "ens", partial)
+    shutil.rmtree(partial / "member_1" / "checkpoints")
+    with pytest.raises(ConfigError, match="member_1: ensemble member has no 'best'"):
+        load_ensemble(partial)
+
+
+def _clamped_unroll(step, params, stats, x0_prev, x0, node_type, mask, n_steps, context):
+    """A custom member rollout: the plain one clipped to a box (the context), plus how far."""
+    from thrombojax.simulator.ensemble import plain_unroll
+
+    pos = plain_unroll(step, params, stats, x0_prev, x0, node_type, mask, n_steps, None)
+    clipped = jnp.clip(pos, -context, context)
+    return clipped, jnp.abs(clipped - pos).max(axis=-1)
+
+
+def test_member_chunks_and_custom_member_rollout():
+    model = FakeSurrogate()
+    x_prev, x_cur, node_type, mask, stats = _state()
+    stack = stack_params([_params(model, s) for s in range(3)])
+    whole = ensemble_rollout(model, stack, stats, x_prev, x_cur, node_type, mask, 5)
+    chunked = ensemble_rollout(model, stack, stats, x_prev, x_cur, node_type, mask, 5,
+                               member_batch=2)
+    np.testing.assert_allclose(np.asarray(chunked.members), np.asarray(whole.members),
+                               rtol=0, atol=1e-6)
+    p = _params(model, 0)
+    kw = dict(n_members=3, noise_std=1e-3, rng=jax.random.key(1))
+    a = stochastic_rollout(model, p, stats, x_prev, x_cur, node_type, mask, 5, **kw)
+    b = stochastic_rollout(model, p, stats, x_prev, x_cur, node_type, mask, 5, member_batch=1,
+                           **kw)
+    np.testing.assert_allclose(np.asarray(b.members), np.asarray(a.members), rtol=0, atol=1e-6)
+    box = 0.5
+    guarded = ensemble_rollout(model, stack, stats, x_prev, x_cur, node_type, mask, 5,
+                               rollout_fn=_clamped_unroll, context=jnp.float32(box))
+    assert np.abs(np.asarray(guarded.members)).max() <= box
+    assert guarded.aux.shape == (3, 5, 40) and float(guarded.aux.max()) > 0
+    np.testing.assert_allclose(np.asarray(guarded.members),
+                               np.clip(np.asarray(whole.members), -box, box), atol=1e-6)
+    with pytest.raises(ConfigError):
+        ensemble_rollout(model, stack, stats, x_prev, x_cur, node_type, mask, 5, member_batch=0)

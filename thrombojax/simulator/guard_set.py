@@ -1,0 +1,133 @@
+"""The guards a rollout applies after every learned step, as one pytree (:class:`GuardSet`).
+
+A rollout with guards runs, inside its compiled ``lax.scan``::
+
+    s_{t+1} = learned step (s_{t-1}, s_t)
+    s_{t+1} = coherence(s_{t+1})     # the clot keeps its shape within `tolerance` of a rigid copy
+    s_{t+1} = contain(s_{t+1})       # clot nodes that crossed the rigid wall are put back inside
+
+and records per step how far each guard moved every node (``corrections``): a large correction
+means the model is wrong, and the reports show it. The next step's velocity is taken from the
+corrected positions (position-based dynamics). Guards act on clot rows only (gathered with the
+host-side index ``clot_index``), so the cost does not grow with the vessel.
+
+Distances are in the rollout's (scaled) coordinates; :func:`build_guards` takes them in vessel
+radii and converts with ``radius`` (one vessel radius in scaled coordinates). Defaults:
+containment on with a 0.01 r margin and 0.01 r tolerance (about the solver's contact
+penetration), coherence on with a 1 r tolerance (the true clot deviates from a rigid copy of its
+start by up to ~0.9 r in the built-in datasets, so coherence acts only on a clot that falls
+apart) and full stiffness.
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from flax import struct
+
+from thrombojax.errors import ConfigError
+from thrombojax.simulator.guards import coherence, contain
+from thrombojax.simulator.wall import Wall
+from thrombojax.simulator.wall_build import wall_from_simulation
+from thrombojax.types import NodeType
+
+__all__ = ["GuardSet", "build_guards", "GUARD_NAMES"]
+
+GUARD_NAMES: tuple[str, ...] = ("coherence", "containment")
+
+
+@struct.dataclass
+class GuardSet:
+    """The guards of one rollout (a pytree: arrays traced, switches and distances static).
+
+    Attributes:
+        clot_index: ``[C]`` int32 indices of the clot rows the guards act on.
+        wall: the rigid :class:`~thrombojax.simulator.wall.Wall` (scaled coordinates).
+        x_ref: ``[C, 3]`` the clot's reference shape (its positions at the rollout's start).
+        containment: apply :func:`~thrombojax.simulator.guards.contain`.
+        margin, tol: containment distances (scaled coordinates).
+        coherence: apply :func:`~thrombojax.simulator.guards.coherence`.
+        stiffness, tolerance: coherence settings (tolerance in scaled coordinates).
+    """
+
+    clot_index: jax.Array
+    wall: Wall
+    x_ref: jax.Array
+    containment: bool = struct.field(pytree_node=False, default=True)
+    margin: float = struct.field(pytree_node=False, default=0.0)
+    tol: float = struct.field(pytree_node=False, default=0.0)
+    coherence: bool = struct.field(pytree_node=False, default=True)
+    stiffness: float = struct.field(pytree_node=False, default=1.0)
+    tolerance: float = struct.field(pytree_node=False, default=0.0)
+
+    def apply(self, x: jax.Array) -> tuple[jax.Array, dict[str, jax.Array]]:
+        """Correct one frame ``x [N, 3]``; returns ``(x, {guard name: correction [N]})``.
+
+        Nodes outside ``clot_index`` are never moved (their correction is 0).
+        """
+        n = x.shape[0]
+        idx = self.clot_index
+        xc = x[idx]
+        ones = jnp.ones(idx.shape[0], bool)
+        corrections = {}
+        if self.coherence:
+            xc, moved = coherence(xc, self.x_ref, ones, stiffness=self.stiffness,
+                                  tolerance=self.tolerance)
+            corrections["coherence"] = jnp.zeros(n, x.dtype).at[idx].set(moved)
+        if self.containment:
+            xc, moved = contain(xc, ones, self.wall, margin=self.margin, tol=self.tol)
+            corrections["containment"] = jnp.zeros(n, x.dtype).at[idx].set(moved)
+        return x.at[idx].set(xc), corrections
+
+
+def build_guards(
+    wall_positions: np.ndarray,
+    wall_node_type: np.ndarray,
+    x_start: np.ndarray,
+    node_type: np.ndarray,
+    *,
+    radius: float,
+    wall_cells: np.ndarray | None = None,
+    containment: bool = True,
+    coherence: bool = True,
+    margin_r: float = 0.01,
+    tol_r: float = 0.01,
+    stiffness: float = 1.0,
+    tolerance_r: float = 1.0,
+) -> GuardSet:
+    """Build the guards of one rollout on the host.
+
+    Args:
+        wall_positions: ``[N_full, 3]`` a frame of the full simulation (scaled), whose vessel
+            nodes (and ``wall_cells``) make the wall; the vessel is rigid, any frame does.
+        wall_node_type: ``[N_full]`` NodeType of that frame.
+        x_start: ``[N, 3]`` the rollout's start frame s_{t0} on the rolled-out node set (scaled):
+            the clot's reference shape.
+        node_type: ``[N]`` NodeType of the rolled-out nodes.
+        radius: one vessel radius in scaled coordinates (> 0).
+        wall_cells: ``[F, 3]`` wall triangles of the full simulation, if it has them (exact
+            wall), else the wall is its nodes with estimated normals.
+        containment, coherence: switch each guard.
+        margin_r, tol_r: containment margin and tolerance, in vessel radii.
+        stiffness: coherence stiffness in [0, 1]. tolerance_r: coherence tolerance in radii.
+    Returns:
+        The :class:`GuardSet`.
+    """
+    if not radius > 0:
+        raise ConfigError(f"guards: the vessel radius must be > 0 (scaled units), got {radius}")
+    if not 0.0 <= stiffness <= 1.0:
+        raise ConfigError(f"guards: coherence stiffness must be in [0, 1], got {stiffness}")
+    clot = np.flatnonzero(np.asarray(node_type) == NodeType.CLOT).astype(np.int32)
+    if clot.size == 0:
+        raise ConfigError("guards: the rolled-out node set has no clot node")
+    wall = wall_from_simulation(np.asarray(wall_positions, np.float32),
+                                np.asarray(wall_node_type), wall_cells)
+    return GuardSet(
+        clot_index=jnp.asarray(clot),
+        wall=wall,
+        x_ref=jnp.asarray(np.asarray(x_start, np.float32)[clot]),
+        containment=bool(containment), margin=float(margin_r * radius),
+        tol=float(tol_r * radius), coherence=bool(coherence), stiffness=float(stiffness),
+        tolerance=float(tolerance_r * radius),
+    )
