@@ -103,3 +103,120 @@ def test_rollout_command_writes_everything(tiny_run):
     mm = write_dataset(root / "mm.h5", [src[n] for n in src.names], name="mm", source="t",
                        units="mm")
     assert main(["rollout", "--run", str(run), "--dataset", str(mm), "--out", str(out)]) == 2
+
+
+def _other_dataset(data, path, *, rename: bool, units: str = "", skip_frames: int = 4):
+    """Dataset B from the run's dataset A: the clots move 10 % faster, another unit record
+    (``""``: the vessel radius is estimated), its own ``skip_frames``; renamed or not."""
+    from thrombojax.io.hdf5 import Simulation, open_dataset, write_dataset
+
+    src = open_dataset(data)
+    sims = []
+    for name in src.names:
+        s = src[name]
+        pos = s.positions.copy()
+        clot = s.node_type == NodeType.CLOT
+        pos[:, clot] += 0.1 * (pos[:, clot] - pos[:1, clot])
+        sims.append(Simulation(name=f"other_{name}" if rename else name, positions=pos,
+                               node_type=s.node_type, attrs=s.attrs))
+    return write_dataset(path, sims, name="other", source="test", units=units,
+                         skip_frames=skip_frames)
+
+
+def test_evaluate_by_phase_in_radii_on_another_dataset(tiny_run, capsys):
+    """Train on A, evaluate on B in one command: all of B, phases at B's skip_frames, errors in
+    vessel radii from B's geometry, model beside constant velocity."""
+    data, run, root = tiny_run
+    other = _other_dataset(data, root / "b_renamed.h5", rename=True)
+    assert main(["evaluate", "--run", str(run), "--dataset", str(other), "--out",
+                 str(root / "ev_b"), "--quiet"]) == 0
+    res = json.loads((root / "ev_b" / "evaluate.json").read_text())
+    assert sorted(res["simulations"]) == [f"other_sim_{i}" for i in range(4)]
+    assert res["selection"]["how"].startswith("all 4 simulations of the dataset")
+    assert "all 4 simulations" in capsys.readouterr().out
+    # B's own skip_frames (4) splits the windows t = 1..10: start t < 4, rollout t >= 4
+    assert res["skip_frames"] == 4
+    ph = res["phases"]
+    assert (ph["all"]["windows"], ph["start"]["windows"], ph["rollout"]["windows"]) == \
+        (40, 12, 28)
+    assert ph["exit"]["windows"] == 0  # the clots never leave the tube
+    assert ph["rollout_before_exit"]["windows"] == 28
+    # vessel radius estimated from B's wall (a tube of radius 0.18 x 10 = 1.8)
+    u = res["units"]
+    assert "estimated" in u["vessel_radius_source"]
+    assert u["vessel_radius"] == pytest.approx(1.8, rel=0.1)
+    scale = json.loads((run / "config.json").read_text())["scaling"]["scale"]
+    assert u["scale"] == pytest.approx(scale)
+    factor = scale / u["vessel_radius"]
+    for p in ph.values():
+        if p["windows"]:
+            assert p["mse_r2"] == pytest.approx(p["mse"] * factor**2)
+            assert p["rmse_r"] == pytest.approx(np.sqrt(p["mse"]) * factor)
+            assert p["ratio_to_cv"] == pytest.approx(p["mse"] / p["constant_velocity_mse"])
+    # the phases are window-weighted parts of the whole
+    assert ph["all"]["mse"] == pytest.approx(
+        (12 * ph["start"]["mse"] + 28 * ph["rollout"]["mse"]) / 40)
+    md = (root / "ev_b" / "evaluate.md").read_text()
+    for text in ("constant velocity MSE (r^2)", "| rollout |", "| start |", "estimated from",
+                 "skip_frames = 4"):
+        assert text in md, text
+
+
+def test_evaluate_selects_simulations(tiny_run):
+    data, run, root = tiny_run
+    # --sim on evaluate: exactly those
+    assert main(["evaluate", "--run", str(run), "--dataset", str(data), "--out",
+                 str(root / "ev_sim"), "--sim", "sim_2", "--sim", "sim_0", "--quiet"]) == 0
+    res = json.loads((root / "ev_sim" / "evaluate.json").read_text())
+    assert list(res["simulations"]) == ["sim_2", "sim_0"]
+    assert res["units"]["vessel_radius"] == 1.0  # A is in vessel radii
+    assert main(["evaluate", "--run", str(run), "--dataset", str(data), "--out",
+                 str(root / "ev_sim"), "--sim", "nope", "--force", "--quiet"]) == 2
+    # B has A's names but other content: not the run's dataset, so all of it
+    same_names = _other_dataset(data, root / "b_same_names.h5", rename=False,
+                                units="vessel radius")
+    assert main(["evaluate", "--run", str(run), "--dataset", str(same_names), "--out",
+                 str(root / "ev_same"), "--quiet"]) == 0
+    res = json.loads((root / "ev_same" / "evaluate.json").read_text())
+    assert len(res["simulations"]) == 4 and "not the run's training dataset" in \
+        res["selection"]["how"]
+    # --split still picks the run's split on any dataset
+    assert main(["evaluate", "--run", str(run), "--dataset", str(same_names), "--out",
+                 str(root / "ev_same"), "--split", "test", "--force", "--quiet"]) == 0
+    test_sims = json.loads((run / "config.json").read_text())["split"]["test"]
+    assert list(json.loads((root / "ev_same" / "evaluate.json").read_text())["simulations"]) \
+        == test_sims
+
+
+def test_rollout_reports_radii_phases_and_ratios_on_another_dataset(tiny_run):
+    data, run, root = tiny_run
+    other = root / "b_renamed.h5"
+    if not other.exists():
+        _other_dataset(data, other, rename=True)
+    out = root / "ro_b"
+    assert main(["rollout", "--run", str(run), "--dataset", str(other), "--out", str(out),
+                 "--no-gif", "--nodes", "100", "--quiet"]) == 0
+    res = json.loads((out / "rollout.json").read_text())
+    assert sorted(res["simulations"]) == [f"other_sim_{i}" for i in range(4)]
+    assert res["skip_frames"] == 4 and res["units"]["vessel_radius"] == pytest.approx(1.8,
+                                                                                       rel=0.1)
+    factor = res["units"]["radii_per_scaled_unit"]
+    for rep in res["simulations"].values():
+        assert rep["t0"] == 4  # the dataset's attribute, whatever the file is called
+        model, cv = rep["summary"]["mgn"], rep["summary"]["constant velocity"]
+        for s in (model, cv):
+            assert s["mse@full_r2"] == pytest.approx(s["mse@full"] * factor**2)
+            assert s["final_centroid_error_r"] == pytest.approx(
+                s["final_centroid_error"] * factor)
+        assert model["ratio_to_cv"]["mse@full"] == pytest.approx(model["mse@full"] /
+                                                                  cv["mse@full"])
+        np.testing.assert_allclose(rep["curves"]["mgn"]["rmse_r"],
+                                   np.sqrt(rep["curves"]["mgn"]["mse"]) * factor)
+        ss = rep["single_step"]
+        assert ss["start"]["windows"] == 3 and ss["rollout"]["windows"] == 7
+        assert ss["rollout"]["constant_velocity_mse"] > 0
+    md = (out / "rollout.md").read_text()
+    for text in ("## In vessel radii", "1-step MSE rollout phase (r^2)", "MSE@10 (r^2)",
+                 "final centroid error (r)", "max % outside", "MSE@full / CV",
+                 "| **mean** | constant velocity |", "## In scaled [-1, 1] coordinates"):
+        assert text in md, text

@@ -164,10 +164,17 @@ def test_data_far_outside_the_runs_box_is_refused(tiny_run, capsys):
 
 
 def test_dataset_without_the_runs_test_simulation(tiny_run, capsys):
+    """Another dataset: all of its simulations by default (said so); the run's split asked for
+    explicitly is a one-line error naming the file and the missing simulations."""
     _, run, root = tiny_run
     renamed = write_dataset(root / "renamed.h5", tiny_sims(prefix="other"), name="r",
                             source="t")
-    assert evaluate(run, renamed, root / "ev_renamed") == 2
+    assert evaluate(run, renamed, root / "ev_renamed") == 0
+    assert "not the run's training dataset" in capsys.readouterr().out
+    res = json.loads((root / "ev_renamed" / "evaluate.json").read_text())
+    assert sorted(res["simulations"]) == sorted(open_dataset(renamed).names)
+    assert main(["evaluate", "--run", str(run), "--dataset", str(renamed), "--out",
+                 str(root / "ev_renamed2"), "--split", "test", "--quiet"]) == 2
     one_line_error(capsys, "renamed.h5", "sim_")
 
 

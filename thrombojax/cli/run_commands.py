@@ -95,20 +95,31 @@ def _run_train(args) -> int:
 def _add_evaluate(sub) -> None:
     p = sub.add_parser(
         "evaluate",
-        help="single-step MSE of a trained run on its test split (JSON + markdown table)",
+        help="single-step MSE of a trained run on any dataset, by phase, beside constant velocity",
         description=(
-            "Teacher-forced one-step prediction on every window of the run's test split: MSE over "
-            "clot nodes in scaled [-1, 1] coordinates (the study's metric), beside the "
-            "constant-velocity baseline. Writes evaluate.json and evaluate.md."
+            "Teacher-forced one-step prediction on every window of the chosen simulations: MSE "
+            "over clot nodes in scaled [-1, 1] coordinates (the study's metric) and in vessel "
+            "radii, beside the constant-velocity baseline with the ratio model / CV, split by "
+            "phase: start from rest (frames before the dataset's skip_frames attribute), the "
+            "rollout phase, and the exit (from the first frame with a clot node past the "
+            "vessel's open end). By default the run's test split on its own dataset, every "
+            "simulation of any other dataset (train on A, evaluate on B). Writes evaluate.json "
+            "and evaluate.md."
         ),
     )
     p.add_argument("--run", required=True, metavar="DIR", help="training run directory")
-    p.add_argument("--dataset", required=True, metavar="FILE", help="dataset .h5 file")
+    p.add_argument("--dataset", required=True, metavar="FILE", help="dataset .h5 file (the "
+                   "run's own or another one in the same length unit)")
     p.add_argument("--out", metavar="DIR", help="output folder (default: the run directory)")
-    p.add_argument("--split", default="test", choices=("train", "val", "test", "all"))
+    p.add_argument("--sim", action="append", metavar="NAME",
+                   help="simulation to evaluate (repeatable; default: see --split)")
+    p.add_argument("--split", choices=("train", "val", "test", "all"),
+                   help="the run's split to evaluate (default: test on the run's own dataset, "
+                   "all simulations of another dataset)")
     p.add_argument("--checkpoint", default="best", choices=("best", "last"))
     p.add_argument("--skip", type=NN_INT, default=0,
-                   help="skip windows whose middle frame < SKIP")
+                   help="leave out windows whose middle frame < SKIP (default 0; the phases "
+                   "split at the dataset's skip_frames whatever SKIP is)")
     p.add_argument("--nodes", type=POS_INT, help="fixed seeded node subset (default: the "
                    "run's nodes_per_sample, else all nodes)")
     output_flags(p, "replace existing evaluate.json / evaluate.md")
@@ -118,9 +129,10 @@ def _add_evaluate(sub) -> None:
 def _run_evaluate(args) -> int:
     from thrombojax.eval.single_step import evaluate_run
 
-    res = evaluate_run(args.run, args.dataset, out_dir=args.out, split=args.split,
-                       which=args.checkpoint, skip=args.skip, n_nodes=args.nodes,
-                       progress=not args.quiet, force=args.force)
+    res = evaluate_run(args.run, args.dataset, out_dir=args.out, simulations=args.sim,
+                       split=args.split, which=args.checkpoint, skip=args.skip,
+                       n_nodes=args.nodes, progress=not args.quiet, force=args.force)
+    print(f"simulations: {res['selection']['how']}")
     print(res["table"], end="")
     print(f"wrote {args.out or args.run}/evaluate.json and evaluate.md")
     return 0
@@ -137,15 +149,20 @@ def _add_rollout(sub) -> None:
             "Writes per simulation: <sim>_rollout.h5 (dataset schema), <sim>_prediction.xdmf and "
             "<sim>_truth.xdmf (node types and error as point data), <sim>_rollout.gif (prediction "
             "beside ground truth), <sim>_error.png and <sim>_metrics.png (with the "
-            "constant-velocity baseline), plus rollout.json and rollout.md."
+            "constant-velocity baseline), plus rollout.json and rollout.md (every error in "
+            "scaled units and vessel radii, beside constant velocity). Any dataset in the run's "
+            "length unit: by default the run's test split on its own dataset, every simulation "
+            "of another dataset."
         ),
     )
     p.add_argument("--run", required=True, metavar="DIR", help="training run directory")
     p.add_argument("--dataset", required=True, metavar="FILE", help="dataset .h5 file")
     p.add_argument("--out", required=True, metavar="DIR", help="output folder")
     p.add_argument("--sim", action="append", metavar="NAME",
-                   help="simulation to roll out (repeatable; default: the run's test split)")
-    p.add_argument("--split", default="test", choices=("train", "val", "test", "all"))
+                   help="simulation to roll out (repeatable; default: see --split)")
+    p.add_argument("--split", choices=("train", "val", "test", "all"),
+                   help="the run's split to roll out (default: test on the run's own dataset, "
+                   "all simulations of another dataset)")
     p.add_argument("--checkpoint", default="best", choices=("best", "last"))
     p.add_argument("--skip", type=NN_INT, help="skipped frames (default: the dataset's "
                    "skip_frames attribute)")
@@ -166,6 +183,7 @@ def _run_rollout(args) -> int:
                       which=args.checkpoint, skip=args.skip, n_steps=args.steps,
                       n_nodes=args.nodes, seed=args.seed, format=args.format,
                       gif=not args.no_gif, force=args.force, progress=not args.quiet)
+    print(f"simulations: {res['selection']['how']}")
     print(res["table"], end="")
     print(f"wrote rollouts to {args.out}/")
     return 0

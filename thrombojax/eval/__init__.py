@@ -2,6 +2,9 @@
 
 Modules: :mod:`~thrombojax.eval.metrics` (errors, centroid, containment),
 :mod:`~thrombojax.eval.single_step` (the study's single-step metric, ``thrombojax evaluate``),
+:mod:`~thrombojax.eval.phases` (single-step errors by phase: start, rollout, exit),
+:mod:`~thrombojax.eval.physical` (errors in vessel radii, the conversion recorded),
+:mod:`~thrombojax.eval.truth_tables` (the markdown of ``evaluate.md`` and ``rollout.md``),
 :mod:`~thrombojax.eval.rollouts` (a rollout measured beside the truth and constant velocity),
 :mod:`~thrombojax.eval.report` (``thrombojax rollout``: trajectories, ParaView files, plots),
 :mod:`~thrombojax.eval.plots` (matplotlib figures and animations),

@@ -3,7 +3,8 @@
 All metrics are host-side numpy on already computed trajectories (a rollout is computed once
 under ``jax.lax.scan``; measuring it is cheap). Positions may be scaled or physical: the
 scaling is isotropic, so containment and centroid tests mean the same in both; MSE values
-are reported in the scaled [-1, 1] coordinates, like the study's table.
+are computed in the scaled [-1, 1] coordinates, like the study's table (reports convert them to
+vessel radii, :mod:`thrombojax.eval.physical`).
 
 Conventions (following DeepMind ``meshgraphnets`` evaluators):
 - ``mse_per_step[k]`` is the mean over clot nodes and x, y, z of the squared error of

@@ -12,7 +12,13 @@ For each chosen simulation, into ``out_dir``:
 - ``<sim>_summary.png``: the model, constant velocity and the truth side by side at 4 frames;
 - ``<sim>_error.png`` (MSE per step) and ``<sim>_metrics.png`` (MSE, centroid error, fraction
   outside the vessel), always with the constant-velocity baseline;
-- ``rollout.json`` (all metrics and curves) and ``rollout.md`` (horizon table).
+- ``rollout.json`` (all metrics and curves) and ``rollout.md`` (:mod:`thrombojax.eval.
+  truth_tables`): every error in scaled units and in vessel radii (the conversion recorded,
+  :mod:`thrombojax.eval.physical`), beside constant velocity with the ratio model / CV, and the
+  teacher-forced single-step MSE on the same nodes by phase (:mod:`thrombojax.eval.phases`).
+
+Any dataset in the run's length unit can be rolled out: by default the run's test split on its
+own dataset, every simulation of another (:func:`thrombojax.eval.single_step.select_simulations`).
 
 ``<sim>`` is :func:`thrombojax.io.outputs.safe_stems` of the simulation name. Every file is
 written atomically; existing files are replaced only with ``force=True`` (all targets are
@@ -30,15 +36,23 @@ from tqdm.auto import tqdm
 
 from thrombojax import study
 from thrombojax.data.scaling import Scaling
+from thrombojax.eval.phases import PHASE_HELP
+from thrombojax.eval.physical import curves_in_radii, radius_units, summary_in_radii
 from thrombojax.eval.plots import animate_rollout, plot_error_curves, plot_rollout_metrics
 from thrombojax.eval.rollouts import RolloutResult, rollout_simulation
-from thrombojax.eval.single_step import scaled_simulation, split_names
+from thrombojax.eval.single_step import (
+    scaled_simulation,
+    select_simulations,
+    simulation_exit_frame,
+    single_step_by_phase,
+)
 from thrombojax.eval.summary_plot import default_summary_frames, plot_rollout_summary
-from thrombojax.eval.tables import markdown_table
+from thrombojax.eval.truth_tables import rollout_markdown
 from thrombojax.io.export import export_trajectory
 from thrombojax.io.hdf5 import Simulation, open_dataset, write_dataset
 from thrombojax.io.outputs import atomic_path, atomic_write_text, check_targets, safe_stems
-from thrombojax.train.guards import check_finite, check_in_box, check_split_names
+from thrombojax.simulator.step import make_step
+from thrombojax.train.guards import check_finite, check_in_box
 from thrombojax.train.state import load_trained
 from thrombojax.units import check_units
 
@@ -148,7 +162,7 @@ def rollout_run(
     out_dir: str | pathlib.Path,
     *,
     simulations: list[str] | None = None,
-    split: str = "test",
+    split: str | None = None,
     which: str = "best",
     skip: int | None = None,
     n_steps: int | None = None,
@@ -162,9 +176,12 @@ def rollout_run(
     """Roll a trained run out on simulations of a dataset and write trajectories, plots, metrics.
 
     Args:
-        run_dir: training run directory. dataset_path: dataset file. out_dir: output folder.
-        simulations: names to roll out (default: the run's ``split``).
-        split: split used when ``simulations`` is not given.
+        run_dir: training run directory. dataset_path: any dataset file in the run's length
+            unit. out_dir: output folder.
+        simulations: names to roll out (``--sim``).
+        split: ``train`` / ``val`` / ``test`` / ``all``; default (``None``): the run's test split
+            on its own dataset, every simulation of another dataset
+            (:func:`thrombojax.eval.single_step.select_simulations`).
         which: checkpoint, ``"best"`` or ``"last"``.
         skip: skipped frames; the rollout starts at frame ``max(skip, 1)`` (default: the
             dataset's ``skip_frames`` attribute, :func:`thrombojax.study.skip_frames`).
@@ -175,23 +192,26 @@ def rollout_run(
         force: replace existing files in ``out_dir`` (never the dataset or the run).
         progress: progress bar over simulations.
     Returns:
-        JSON-ready summary (also written to ``rollout.json``; table in ``rollout.md``).
+        JSON-ready summary (also written to ``rollout.json``; tables in ``rollout.md``, the one
+        in vessel radii under ``table``).
     """
     trained = load_trained(run_dir, which=which)
     ds = open_dataset(dataset_path)
     check_units(trained.config, ds, run_dir=run_dir, dataset_path=dataset_path)
-    names = list(simulations) if simulations else split_names(trained, ds.names, split)
-    check_split_names(names, ds.names, split if not simulations else "--sim", dataset_path,
-                      run_dir)
-    skip = study.skip_frames(ds) if skip is None else int(skip)
+    names, how = select_simulations(trained, ds, simulations=simulations, split=split,
+                                   dataset_path=dataset_path, run_dir=run_dir)
+    skip_frames = study.skip_frames(ds)
+    skip = skip_frames if skip is None else int(skip)
     n_nodes = n_nodes or trained.run.train.nodes_per_sample
     out_dir = pathlib.Path(out_dir)
     stems = safe_stems(names)
     targets = [f for n in names for f in rollout_files(out_dir, stems[n], format, gif)]
     check_targets([*targets, out_dir / "rollout.json", out_dir / "rollout.md"],
                   inputs=(dataset_path,), force=force, what="rollout output")
+    units = radius_units(trained.scaling, ds)
+    step = make_step(trained.model)
     out_dir.mkdir(parents=True, exist_ok=True)
-    report, rows = {}, []
+    report = {}
     for name in tqdm(names, desc=f"rollout {trained.model.name}", unit="sim",
                      disable=not progress):
         sim = ds[name]
@@ -202,29 +222,27 @@ def rollout_run(
                                  seed=seed, wall_cells=sim.wall_cells)
         check_finite({"predicted positions": float(np.sum(res.pred))},
                      f"{run_dir}: checkpoint '{which}' on simulation '{name}'")
+        exit_at = simulation_exit_frame(pos, node_type, sim.wall_cells)
+        _, single = single_step_by_phase(
+            step, trained.params, trained.stats, pos[:, res.node_index], res.node_type,
+            skip_frames=skip_frames, exit_at=exit_at, units=units)
         files = save_rollout(res, sim, trained.scaling, out_dir, model_name=trained.model.name,
                              format=format, gif=gif, stem=stems[name],
                              units=str(ds.attrs.get("units", "")))
         report[name] = {"t0": res.t0, "n_steps": int(res.pred.shape[0]),
-                        "n_nodes": int(res.node_index.size), "summary": res.summary,
-                        "files": files, "node_index": res.node_index.tolist(),
-                        "curves": {k: {m: v.tolist() for m, v in c.items()}
-                                   for k, c in res.curves.items()}}
-        for label, s in res.summary.items():
-            if label != "ground truth":
-                rows.append([name, label, s.get("mse@1", "n/a"), s.get("mse@10", "n/a"),
-                             s.get("mse@50", "n/a"), s["mse@full"], s["final_centroid_error"],
-                             s["max_fraction_outside"]])
+                        "n_nodes": int(res.node_index.size), "exit_frame": exit_at,
+                        "summary": summary_in_radii(res.summary, units),
+                        "single_step": single, "files": files,
+                        "node_index": res.node_index.tolist(),
+                        "curves": curves_in_radii(res.curves, units)}
     result = {"model": trained.model.name, "run_dir": str(run_dir), "dataset": str(dataset_path),
-              "skip": skip, "seed": seed, "units": str(ds.attrs.get("units", "")),
+              "selection": {"how": how, "simulations": names}, "skip": skip,
+              "skip_frames": skip_frames, "seed": seed, "units": units.to_dict(),
+              "phase_definitions": PHASE_HELP,
               "date": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
               "simulations": report}
     atomic_write_text(out_dir / "rollout.json", json.dumps(result, indent=1))
-    table = markdown_table(["simulation", "model", "MSE@1", "MSE@10", "MSE@50", "MSE@full",
-                            "final centroid err", "max frac. outside"], rows)
-    atomic_write_text(out_dir / "rollout.md",
-        "# Rollout errors (clot nodes, scaled coordinates; mean over the first h steps)\n\n"
-        f"Dataset length unit: {result['units'] or 'not recorded'} (pictures and ParaView "
-        "files are in this unit).\n\n" + table)
+    markdown, table = rollout_markdown(result)
+    atomic_write_text(out_dir / "rollout.md", markdown)
     result["table"] = table
     return result

@@ -2,8 +2,12 @@
 
 - :func:`single_step_errors`: teacher-forced one-step MSE over the clot nodes of every window
   ``(s_{t-1}, s_t, s_{t+1})`` of a simulation, in scaled [-1, 1] coordinates (the study's metric).
-- :func:`evaluate_run` (the ``thrombojax evaluate`` command) writes JSON and a markdown table,
-  with the constant-velocity baseline measured the same way.
+- :func:`single_step_by_phase`: the same for the model and constant velocity (CV), split by the
+  phase of the simulation (:mod:`thrombojax.eval.phases`), in scaled units and vessel radii.
+- :func:`select_simulations`: which simulations a run is measured on (``--sim``, ``--split``, or
+  by default its test split on its own dataset and every simulation of any other dataset).
+- :func:`evaluate_run` (the ``thrombojax evaluate`` command) writes JSON and markdown tables,
+  every error beside CV, in scaled units and in vessel radii (:mod:`thrombojax.eval.physical`).
 
 Rollouts of whole simulations are :mod:`thrombojax.eval.rollouts`; the ``thrombojax rollout``
 command is :mod:`thrombojax.eval.report`.
@@ -15,30 +19,42 @@ import datetime
 import functools
 import json
 import pathlib
+from typing import Any
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 from tqdm.auto import tqdm
 
+from thrombojax import study
 from thrombojax.data.augment import subsample_indices
 from thrombojax.data.scaling import Scaling
 from thrombojax.errors import ConfigError
-from thrombojax.eval.metrics import mse_per_step
-from thrombojax.eval.tables import markdown_table
+from thrombojax.eval.metrics import fit_vessel_wall, mse_per_step
+from thrombojax.eval.phases import PHASE_HELP, exit_frame, phase_summary, window_phases
+from thrombojax.eval.physical import RadiusUnits, radius_units
+from thrombojax.eval.truth_tables import evaluate_markdown
 from thrombojax.io.hdf5 import Dataset, open_dataset
 from thrombojax.io.outputs import atomic_write_text, check_targets
 from thrombojax.models.registry import create_model, identity_stats
 from thrombojax.simulator.step import LearnedStep, make_step
-from thrombojax.train.guards import check_finite, check_in_box, check_split_names
+from thrombojax.train.guards import (
+    check_finite,
+    check_in_box,
+    check_split_names,
+    dataset_fingerprint,
+)
 from thrombojax.train.state import TrainedModel, load_trained
 from thrombojax.types import TargetStats, clot_mask
 from thrombojax.units import check_units
 
 __all__ = [
     "split_names",
+    "select_simulations",
     "scaled_simulation",
+    "simulation_exit_frame",
     "single_step_errors",
+    "single_step_by_phase",
     "evaluate_run",
 ]
 
@@ -60,12 +76,76 @@ def split_names(trained: TrainedModel, names: list[str], split: str = "test") ->
     return list(getattr(trained.split, split))
 
 
+def _is_training_dataset(trained: TrainedModel, dataset: Dataset) -> bool:
+    """Whether ``dataset`` is the one the run was trained on: same fingerprint (names, shapes,
+    node types, first / last frames) when the run recorded one, else it holds the test names."""
+    recorded = trained.config.get("dataset_fingerprint")
+    if isinstance(recorded, dict) and "sha256" in recorded:
+        return recorded["sha256"] == dataset_fingerprint(dataset)["sha256"]
+    return all(n in dataset for n in trained.split.test)
+
+
+def select_simulations(
+    trained: TrainedModel,
+    dataset: Dataset,
+    *,
+    simulations: list[str] | None = None,
+    split: str | None = None,
+    dataset_path: Any = None,
+    run_dir: Any = None,
+) -> tuple[list[str], str]:
+    """The simulations a run is measured on, and a sentence saying why those.
+
+    Args:
+        trained: the run. dataset: the open dataset it is applied to.
+        simulations: names asked for (``--sim``): exactly those.
+        split: ``train`` / ``val`` / ``test`` / ``all`` (``--split``): that split of the run.
+        dataset_path, run_dir: for messages.
+    Returns:
+        ``(names, how)``. With neither ``simulations`` nor ``split``: the run's test split when
+        ``dataset`` is the run's own dataset (same fingerprint), else every simulation of
+        ``dataset`` ("train on A, evaluate on B").
+    Raises:
+        DatasetError / ConfigError: names the dataset lacks, or an empty split (named).
+    """
+    if simulations:
+        names = list(dict.fromkeys(simulations))
+        check_split_names(names, dataset.names, "--sim", dataset_path, run_dir)
+        return names, "asked for with --sim"
+    if split is None and not _is_training_dataset(trained, dataset):
+        return list(dataset.names), (
+            f"all {len(dataset.names)} simulations of the dataset: it is not the run's "
+            f"training dataset ({trained.config.get('dataset', '?')}), so the run's test "
+            "split does not apply")
+    split = split or "test"
+    names = split_names(trained, dataset.names, split)
+    check_split_names(names, dataset.names, split, dataset_path, run_dir)
+    how = "all simulations of the dataset (--split all)" if split == "all" else \
+        f"the run's '{split}' split"
+    return names, how
+
+
 def scaled_simulation(
     dataset: Dataset, name: str, scaling: Scaling
 ) -> tuple[np.ndarray, np.ndarray]:
     """``(positions [T, N, 3] float32 scaled, node_type [N] int32)`` of one simulation."""
     pos = np.asarray(scaling.apply(np.asarray(dataset.positions(name), np.float32)), np.float32)
     return pos, np.asarray(dataset.node_type(name), np.int32)
+
+
+def simulation_exit_frame(positions: np.ndarray, node_type: np.ndarray,
+                          wall_cells: np.ndarray | None = None) -> int | None:
+    """:func:`thrombojax.eval.phases.exit_frame` of one full-resolution simulation.
+
+    Args:
+        positions: ``[T, N, 3]`` (scaled or physical). node_type: ``[N]``.
+        wall_cells: ``[F, 3]`` wall triangles when the dataset has them (open ends from the
+            mesh; else from the wall point cloud, :func:`thrombojax.eval.metrics.fit_vessel_wall`).
+    Returns:
+        The first frame with a clot node past an open end (not past at frame 0), or ``None``.
+    """
+    wall = fit_vessel_wall(positions[0], node_type, wall_cells=wall_cells)
+    return exit_frame(wall, positions, clot_mask(node_type))
 
 
 @functools.partial(jax.jit, static_argnums=0)
@@ -113,12 +193,57 @@ def single_step_errors(
     return np.concatenate(errors)
 
 
+@functools.cache
+def _cv_step() -> LearnedStep:
+    return make_step(create_model("constant_velocity"))
+
+
+def single_step_by_phase(
+    step: LearnedStep,
+    params: dict,
+    stats: TargetStats,
+    positions: np.ndarray,
+    node_type: np.ndarray,
+    *,
+    skip_frames: int,
+    exit_at: int | None,
+    units: RadiusUnits,
+    skip: int = 0,
+    batch_size: int = 8,
+) -> tuple[dict[str, np.ndarray], dict[str, dict]]:
+    """Teacher-forced single-step MSE of a model and of CV on one simulation, by phase.
+
+    Args:
+        step, params, stats: the learned step and its parameters and statistics.
+        positions: ``[T, N, 3]`` scaled positions (all nodes or a subset).
+        node_type: ``[N]`` NodeType values.
+        skip_frames: the dataset's ``skip_frames`` (the start / rollout boundary).
+        exit_at: :func:`exit_frame` of the full-resolution simulation, or ``None``.
+        units: the conversion to vessel radii.
+        skip: windows with middle frame ``t < skip`` are not evaluated at all.
+        batch_size: windows per compiled call.
+    Returns:
+        ``(windows, summary)``: ``windows`` holds ``[W]`` arrays ``"t"`` (middle frames),
+        ``"model"``, ``"constant_velocity"`` (MSE, scaled) and one bool mask per phase;
+        ``summary`` is :func:`phase_summary`.
+    """
+    m = single_step_errors(step, params, stats, positions, node_type, skip=skip,
+                           batch_size=batch_size)
+    b = single_step_errors(_cv_step(), {}, identity_stats(), positions, node_type, skip=skip,
+                           batch_size=batch_size)
+    times = np.arange(max(skip, 1), positions.shape[0] - 1)
+    phases = window_phases(times, skip_frames=skip_frames, exit_at=exit_at)
+    windows = {"t": times, "model": m, "constant_velocity": b, **phases}
+    return windows, phase_summary(m, b, phases, units)
+
+
 def evaluate_run(
     run_dir: str | pathlib.Path,
     dataset_path: str | pathlib.Path,
     *,
     out_dir: str | pathlib.Path | None = None,
-    split: str = "test",
+    simulations: list[str] | None = None,
+    split: str | None = None,
     which: str = "best",
     skip: int = 0,
     batch_size: int = 8,
@@ -127,21 +252,29 @@ def evaluate_run(
     progress: bool = True,
     force: bool = False,
 ) -> dict:
-    """Single-step MSE of a trained run on one split, beside the constant-velocity baseline.
+    """Single-step MSE of a trained run on any dataset, by phase, beside constant velocity.
 
     Args:
-        run_dir: the training run directory. dataset_path: the dataset it was trained on.
+        run_dir: the training run directory. dataset_path: any dataset in the run's length unit
+            (the run's own, or another: "train on A, evaluate on B").
         out_dir: where ``evaluate.json`` and ``evaluate.md`` go (default: ``run_dir``).
-        split: ``"test"`` (default), ``"val"``, ``"train"`` or ``"all"``.
+        simulations: evaluate exactly these (``--sim``).
+        split: ``"test"``, ``"val"``, ``"train"`` or ``"all"``; default (``None``): the run's
+            test split on its own dataset, every simulation of another one
+            (:func:`select_simulations`).
         which: checkpoint, ``"best"`` or ``"last"``.
-        skip: middle frames ``t < skip`` are not evaluated (default 0: every window).
+        skip: windows whose middle frame is ``< skip`` are not evaluated (default 0: every
+            window). The phases (:mod:`thrombojax.eval.phases`) split at the dataset's own
+            ``skip_frames`` attribute (:func:`thrombojax.study.skip_frames`), not at ``skip``.
         batch_size: windows per compiled call.
         n_nodes: evaluate on a fixed seeded node subset of this size per simulation (default:
             the run's ``nodes_per_sample``, else every node). seed: subset seed.
         progress: show a progress bar.
         force: replace an existing ``evaluate.json`` / ``evaluate.md``.
     Returns:
-        The JSON-ready result: per simulation and overall MSE of model and baseline.
+        The JSON-ready result: overall and per-simulation MSE of the model and of constant
+        velocity per phase, in scaled units and vessel radii, with the ratio model / CV, the
+        conversion (``units``) and the selection (``selection``); ``table``: the markdown.
     """
     out_dir = pathlib.Path(out_dir or run_dir)
     check_targets([out_dir / "evaluate.json", out_dir / "evaluate.md"], inputs=(dataset_path,),
@@ -149,45 +282,43 @@ def evaluate_run(
     trained = load_trained(run_dir, which=which)
     ds = open_dataset(dataset_path)
     check_units(trained.config, ds, run_dir=run_dir, dataset_path=dataset_path)
-    names = split_names(trained, ds.names, split)
-    check_split_names(names, ds.names, split, dataset_path, run_dir)
+    names, how = select_simulations(trained, ds, simulations=simulations, split=split,
+                                   dataset_path=dataset_path, run_dir=run_dir)
+    units = radius_units(trained.scaling, ds)
+    skip_frames = study.skip_frames(ds)
     step = make_step(trained.model)
-    cv = make_step(create_model("constant_velocity"))
     n_nodes = n_nodes or trained.run.train.nodes_per_sample
-    per_sim, all_model, all_base = {}, [], []
-    for name in tqdm(names, desc=f"evaluate {split}", unit="sim", disable=not progress):
-        ds[name]  # validate values as `thrombojax info` does
+    per_sim, windows = {}, []
+    for name in tqdm(names, desc="evaluate", unit="sim", disable=not progress):
+        sim = ds[name]  # validate values as `thrombojax info` does
         pos, node_type = scaled_simulation(ds, name, trained.scaling)
         check_in_box(pos, name, dataset_path, run_dir)
+        exit_at = simulation_exit_frame(pos, node_type, sim.wall_cells)
         if n_nodes:
             idx = subsample_indices(seed, node_type, int(n_nodes))
             pos, node_type = pos[:, idx], node_type[idx]
-        m = single_step_errors(step, trained.params, trained.stats, pos, node_type,
-                               skip=skip, batch_size=batch_size)
-        b = single_step_errors(cv, {}, identity_stats(), pos, node_type, skip=skip,
-                               batch_size=batch_size)
-        per_sim[name] = {"windows": int(m.size), "mse": float(m.mean()),
-                         "constant_velocity_mse": float(b.mean())}
-        all_model.append(m)
-        all_base.append(b)
+        w, phases = single_step_by_phase(step, trained.params, trained.stats, pos, node_type,
+                                         skip_frames=skip_frames, exit_at=exit_at, units=units,
+                                         skip=skip, batch_size=batch_size)
+        per_sim[name] = {**phases["all"], "exit_frame": exit_at, "phases": phases}
+        windows.append(w)
+    cat = {k: np.concatenate([w[k] for w in windows]) for k in windows[0]}
+    overall = phase_summary(cat["model"], cat["constant_velocity"],
+                            {k: cat[k] for k in PHASE_HELP}, units)  # window-weighted
     result = {
         "model": trained.model.name, "run_dir": str(run_dir), "dataset": str(dataset_path),
-        "split": split, "checkpoint": which, "skip": skip, "n_nodes": n_nodes,
-        "metric": "MSE over clot nodes and x, y, z, scaled [-1, 1] coordinates, one step",
-        "mse": float(np.concatenate(all_model).mean()),
-        "constant_velocity_mse": float(np.concatenate(all_base).mean()),
-        "simulations": per_sim,
+        "selection": {"how": how, "simulations": names}, "split": split,
+        "checkpoint": which, "skip": skip, "skip_frames": skip_frames, "n_nodes": n_nodes,
+        "metric": "MSE over clot nodes and x, y, z of one teacher-forced step; scaled [-1, 1] "
+                  "coordinates (mse) and vessel radii squared (mse_r2); rmse_r = sqrt(mse_r2)",
+        "units": units.to_dict(), "phase_definitions": PHASE_HELP,
+        **overall["all"], "phases": overall, "simulations": per_sim,
         "date": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
     }
     check_finite({"mse": result["mse"]}, f"{run_dir}: checkpoint '{which}'")
     out_dir.mkdir(parents=True, exist_ok=True)
     atomic_write_text(out_dir / "evaluate.json", json.dumps(result, indent=2))
-    rows = [[n, r["windows"], r["mse"], r["constant_velocity_mse"]] for n, r in per_sim.items()]
-    rows.append(["**all**", sum(r["windows"] for r in per_sim.values()), result["mse"],
-                 result["constant_velocity_mse"]])
-    table = markdown_table(["simulation", "windows", f"{result['model']} MSE",
-                            "constant velocity MSE"], rows)
-    atomic_write_text(out_dir / "evaluate.md",
-        f"# Single-step {split} MSE ({result['metric']})\n\n{table}")
+    markdown, table = evaluate_markdown(result)
+    atomic_write_text(out_dir / "evaluate.md", markdown)
     result["table"] = table
     return result
