@@ -87,3 +87,17 @@ def test_full_presets_have_the_study_shapes():
     n_bv = (bv.clot_cross + 1) ** 2 * (bv.clot_cells + 1) + bv.wall_rings * bv.wall_around
     n_ce = (ce.clot_cross + 1) ** 2 * (ce.clot_cells + 1) + ce.wall_rings * ce.wall_around
     assert n_bv == 977 and abs(n_ce - 27_000) < 500
+
+
+def test_presets_record_kind_and_skip_frames(tmp_path):
+    """The dataset says which frames rollouts skip: the study's share of its simulation."""
+    from thrombojax import study
+
+    assert [presets.get_preset(n).skip_frames for n in
+            ("bendvessel", "clotentry", "bendvessel-tiny", "clotentry-tiny")] == [5, 40, 1, 2]
+    out = generate.generate_dataset("bendvessel-tiny", tmp_path / "t.h5", n_sims=1,
+                                    progress=False)
+    from thrombojax.io.hdf5 import open_dataset
+
+    ds = open_dataset(out)
+    assert study.dataset_kind(ds) == "bendvessel" and study.skip_frames(ds) == 1
