@@ -220,3 +220,35 @@ def test_rollout_reports_radii_phases_and_ratios_on_another_dataset(tiny_run):
                  "final centroid error (r)", "max % outside", "MSE@full / CV",
                  "| **mean** | constant velocity |", "## In scaled [-1, 1] coordinates"):
         assert text in md, text
+
+
+def test_rollout_guards_on_by_default_and_off_for_the_model_alone(tiny_run):
+    """Guards report their per-step corrections; --no-guards rolls the model out alone."""
+    data, run, root = tiny_run
+    common = ["rollout", "--run", str(run), "--dataset", str(data), "--sim", "sim_1",
+              "--no-gif", "--quiet"]
+    assert main([*common, "--out", str(root / "guarded")]) == 0
+    assert main([*common, "--out", str(root / "alone"), "--no-guards"]) == 0
+    on = json.loads((root / "guarded" / "rollout.json").read_text())
+    off = json.loads((root / "alone" / "rollout.json").read_text())
+    assert on["guards"] and not off["guards"]
+    curves_on = on["simulations"]["sim_1"]["curves"]["mgn"]
+    curves_off = off["simulations"]["sim_1"]["curves"]["mgn"]
+    assert {"guard_containment", "guard_coherence"} <= set(curves_on)
+    assert not any(k.startswith("guard_") for k in curves_off)
+    assert all(v >= 0 for v in curves_on["guard_containment"])
+
+
+def test_rollout_of_an_ensemble_reports_its_spread(tiny_run):
+    """An ensemble folder rolls out as one program: mean prediction, spread beside the error."""
+    from thrombojax.train.ensemble import train_ensemble
+
+    data, _, root = tiny_run
+    train_ensemble(data, "mgn", root / "ens", 2, epochs=1, tiny=True, n_val=1, batch_size=2,
+                   warmup_epochs=0.0, progress=False)
+    assert main(["rollout", "--run", str(root / "ens"), "--dataset", str(data), "--sim",
+                 "sim_0", "--out", str(root / "ens_ro"), "--no-gif", "--quiet"]) == 0
+    rep = json.loads((root / "ens_ro" / "rollout.json").read_text())
+    assert rep["ensemble_members"] == 2
+    spread = rep["simulations"]["sim_0"]["curves"]["mgn"]["spread"]
+    assert len(spread) == rep["simulations"]["sim_0"]["n_steps"] and max(spread) > 0

@@ -172,6 +172,9 @@ def _add_rollout(sub) -> None:
     p.add_argument("--seed", type=NN_INT, default=0, help="seed of the node subset")
     p.add_argument("--format", default="xdmf", choices=("xdmf", "vtu"), help="ParaView format")
     p.add_argument("--no-gif", action="store_true", help="skip the animation")
+    p.add_argument("--no-guards", action="store_true", help="roll the model out alone: no "
+                   "containment in the vessel, no clot coherence (default: guards on, their "
+                   "corrections reported)")
     output_flags(p, "replace existing rollout files in DIR")
     p.set_defaults(func=_run_rollout)
 
@@ -182,7 +185,8 @@ def _run_rollout(args) -> int:
     res = rollout_run(args.run, args.dataset, args.out, simulations=args.sim, split=args.split,
                       which=args.checkpoint, skip=args.skip, n_steps=args.steps,
                       n_nodes=args.nodes, seed=args.seed, format=args.format,
-                      gif=not args.no_gif, force=args.force, progress=not args.quiet)
+                      gif=not args.no_gif, force=args.force, progress=not args.quiet,
+                      guards=not args.no_guards)
     print(f"simulations: {res['selection']['how']}")
     print(res["table"], end="")
     print(f"wrote rollouts to {args.out}/")

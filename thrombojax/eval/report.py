@@ -52,6 +52,7 @@ from thrombojax.io.export import export_trajectory
 from thrombojax.io.hdf5 import Simulation, open_dataset, write_dataset
 from thrombojax.io.outputs import atomic_path, atomic_write_text, check_targets, safe_stems
 from thrombojax.simulator.step import make_step
+from thrombojax.train.ensemble import load_ensemble
 from thrombojax.train.guards import check_finite, check_in_box
 from thrombojax.train.state import load_trained
 from thrombojax.units import check_units
@@ -172,8 +173,13 @@ def rollout_run(
     gif: bool = True,
     force: bool = False,
     progress: bool = False,
+    guards: bool = True,
 ) -> dict:
     """Roll a trained run out on simulations of a dataset and write trajectories, plots, metrics.
+
+    ``run_dir`` may also be an ensemble folder (``thrombojax.train.ensemble``, with
+    ``ensemble.json``): the members roll out in one compiled program, the prediction is their
+    mean and the per-step spread is reported beside the error.
 
     Args:
         run_dir: training run directory. dataset_path: any dataset file in the run's length
@@ -191,11 +197,19 @@ def rollout_run(
         seed: subset seed. format: ``"xdmf"`` or ``"vtu"``. gif: write the animation.
         force: replace existing files in ``out_dir`` (never the dataset or the run).
         progress: progress bar over simulations.
+        guards: apply the physics guards (containment in the vessel, clot coherence) after every
+            step and report how far they moved nodes (False: the model alone).
     Returns:
         JSON-ready summary (also written to ``rollout.json``; tables in ``rollout.md``, the one
         in vessel radii under ``table``).
     """
-    trained = load_trained(run_dir, which=which)
+    ensemble = (pathlib.Path(run_dir) / "ensemble.json").is_file()
+    if ensemble:
+        members = load_ensemble(run_dir, which=which)
+        trained, params = members.members[0], members.params
+    else:
+        trained = load_trained(run_dir, which=which)
+        params = trained.params
     ds = open_dataset(dataset_path)
     check_units(trained.config, ds, run_dir=run_dir, dataset_path=dataset_path)
     names, how = select_simulations(trained, ds, simulations=simulations, split=split,
@@ -217,9 +231,10 @@ def rollout_run(
         sim = ds[name]
         pos, node_type = scaled_simulation(ds, name, trained.scaling)
         check_in_box(pos, name, dataset_path, run_dir)
-        res = rollout_simulation(trained.model, trained.params, trained.stats, pos, node_type,
+        res = rollout_simulation(trained.model, params, trained.stats, pos, node_type,
                                  name=name, t0=max(skip, 1), n_steps=n_steps, n_nodes=n_nodes,
-                                 seed=seed, wall_cells=sim.wall_cells)
+                                 seed=seed, wall_cells=sim.wall_cells, ensemble=ensemble,
+                                 guard_radius=1.0 / units.factor if guards else None)
         check_finite({"predicted positions": float(np.sum(res.pred))},
                      f"{run_dir}: checkpoint '{which}' on simulation '{name}'")
         exit_at = simulation_exit_frame(pos, node_type, sim.wall_cells)
@@ -238,6 +253,8 @@ def rollout_run(
     result = {"model": trained.model.name, "run_dir": str(run_dir), "dataset": str(dataset_path),
               "selection": {"how": how, "simulations": names}, "skip": skip,
               "skip_frames": skip_frames, "seed": seed, "units": units.to_dict(),
+              "guards": bool(guards),
+              "ensemble_members": members.n_members if ensemble else 1,
               "phase_definitions": PHASE_HELP,
               "date": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
               "simulations": report}

@@ -22,7 +22,13 @@ from thrombojax.eval.metrics import (
     mse_per_step,
 )
 from thrombojax.models.registry import Surrogate
-from thrombojax.simulator.rollout import constant_velocity_rollout, rollout
+from thrombojax.simulator.ensemble import ensemble_rollout
+from thrombojax.simulator.guard_set import build_guards
+from thrombojax.simulator.rollout import (
+    constant_velocity_rollout,
+    guarded_unroll,
+    rollout_with_corrections,
+)
 from thrombojax.simulator.step import LearnedStep
 from thrombojax.types import TargetStats, clot_mask
 
@@ -41,7 +47,9 @@ class RolloutResult:
         pred, true, baseline: ``[n_steps, n, 3]`` frames t0+1 .. t0+n_steps (scaled).
         curves: label -> {"mse", "centroid_error", "fraction_outside"} ``[n_steps]`` arrays,
             labels: the model's name, "constant velocity", and "ground truth" (containment only).
-        summary: JSON-ready horizon MSEs and final values per label.
+        summary: JSON-ready horizon MSEs and final values per label (with guards: the largest
+            correction of each guard, ``max_guard_<name>``).
+        spread: ``[n_steps, n]`` per-node spread of an ensemble rollout (``None`` otherwise).
     """
 
     name: str
@@ -54,6 +62,7 @@ class RolloutResult:
     baseline: np.ndarray
     curves: dict
     summary: dict
+    spread: np.ndarray | None = None
 
 
 def rollout_simulation(
@@ -69,6 +78,8 @@ def rollout_simulation(
     n_nodes: int | None = None,
     seed: int = 0,
     wall_cells: np.ndarray | None = None,
+    guard_radius: float | None = None,
+    ensemble: bool = False,
 ) -> RolloutResult:
     """Roll a model out on one simulation and measure it (scaled coordinates throughout).
 
@@ -83,6 +94,13 @@ def rollout_simulation(
         seed: subset seed.
         wall_cells: ``[F, 3]`` wall triangles of the full simulation, if it has them (better
             wall normals and open-end detection for the containment test).
+        guard_radius: one vessel radius in scaled coordinates: apply the physics guards
+            (:func:`thrombojax.simulator.guard_set.build_guards`) after every step and record
+            their per-step largest correction in the curves (``guard_<name>``); ``None``: the
+            model alone.
+        ensemble: ``params`` is a member-stacked pytree: the prediction is the ensemble mean
+            and ``curves[model]["spread"]`` its mean per-step spread over clot nodes
+            (:mod:`thrombojax.simulator.ensemble`); ``result.spread`` holds ``[n, N]``.
     Returns:
         The :class:`RolloutResult`.
     """
@@ -100,7 +118,20 @@ def rollout_simulation(
     sub_type = np.asarray(node_type)[idx]
     x_prev, x0 = positions[t0 - 1, idx], positions[t0, idx]
     mask = np.ones(idx.size, bool)
-    pred = np.asarray(rollout(model, params, stats, x_prev, x0, sub_type, mask, n_steps))
+    guards = None if guard_radius is None else build_guards(
+        positions[0], node_type, x0, sub_type, radius=guard_radius, wall_cells=wall_cells)
+    spread = None
+    if ensemble:
+        ens = ensemble_rollout(model, params, stats, x_prev, x0, sub_type, mask, n_steps,
+                               rollout_fn=None if guards is None else guarded_unroll,
+                               context=guards)
+        pred, spread = np.asarray(ens.mean), np.asarray(ens.spread)
+        corrections = {} if ens.aux is None else {
+            k: np.asarray(v).max(axis=0) for k, v in ens.aux.items()}
+    else:
+        traj, corrections = rollout_with_corrections(model, params, stats, x_prev, x0, sub_type,
+                                                     mask, n_steps, guards=guards)
+        pred = np.asarray(traj)
     true = positions[t0 + 1:t0 + 1 + n_steps][:, idx]
     base = constant_velocity_rollout(x_prev, x0, sub_type, mask, n_steps)
     clot = clot_mask(sub_type)
@@ -118,5 +149,10 @@ def rollout_simulation(
         summary.setdefault(key, {})["final_fraction_outside"] = float(c["fraction_outside"][-1])
         summary[key]["max_fraction_outside"] = float(c["fraction_outside"].max())
         curves[key] = c
+    for guard, moved in corrections.items():  # the model is wrong where the guards act
+        curves[label][f"guard_{guard}"] = np.asarray(moved).max(axis=1)
+        summary[label][f"max_guard_{guard}"] = float(np.asarray(moved).max())
+    if spread is not None:
+        curves[label]["spread"] = spread[:, clot].mean(axis=1)
     return RolloutResult(name, t0, idx, sub_type, np.stack([x_prev, x0]), pred, true, base,
-                         curves, summary)
+                         curves, summary, spread)

@@ -27,6 +27,7 @@ __all__ = [
     "rollout",
     "rollout_with_corrections",
     "constant_velocity_rollout",
+    "guarded_unroll",
     "as_step",
 ]
 
@@ -92,6 +93,14 @@ def _scan(step, params, stats, x_prev, x_cur, node_type, mask, n_steps, *, train
     _, (positions, outputs, corrections) = jax.lax.scan(body, (x_prev, x_cur),
                                                         jnp.arange(n_steps))
     return positions, outputs, corrections
+
+
+def guarded_unroll(step, params, stats, x0_prev, x0, node_type, mask, n_steps, context):
+    """A member rollout with guards for :func:`thrombojax.simulator.ensemble.ensemble_rollout`
+    (its ``rollout_fn``; ``context`` is the :class:`GuardSet`): ``(positions, corrections)``."""
+    positions, _, corrections = _scan(step, params, stats, x0_prev, x0, node_type, mask, n_steps,
+                                      guards=context)
+    return positions, corrections
 
 
 def _rollout_impl(step, params, stats, x0_prev, x0, node_type, mask, n_steps, guards=None):
