@@ -127,6 +127,8 @@ def run_demo(out: str | pathlib.Path, config: DemoConfig = DemoConfig(), *,
     _stage("4/6 roll out on the test simulation")
     ro = rollout_run(run, data, out / "rollout", split="test")
     print(ro["table"], end="")
+    verdicts = [rollout_verdict(name, rep["summary"], ro["model"])
+                for name, rep in ro["simulations"].items()]
     for name, rep in ro["simulations"].items():
         for key in ("gif", "summary_png", "error_png", "metrics_png", "prediction",
                     "trajectory"):
@@ -151,11 +153,27 @@ def run_demo(out: str | pathlib.Path, config: DemoConfig = DemoConfig(), *,
     _stage("6/6 export the test simulation's ground truth for ParaView")
     paths["export"] = export_file(data, out / "export", names=[test_name])[0]
 
+    print("\n== in plain words")
+    for line in verdicts:
+        print(f"   {line}")
     print(f"\n== done in {time.perf_counter() - start:.0f} s. Open:")
     width = max(map(len, paths))
     for key, path in paths.items():
         print(f"   {key:<{width}}  {path}")
     return paths
+
+
+def rollout_verdict(name: str, summary: dict, model: str) -> str:
+    """One sentence: the rollout against constant velocity (CV), in vessel radii (r)."""
+    m, cv = summary[model], summary["constant velocity"]
+    ratio = m["ratio_to_cv"]["mse@full"]
+    word = "better than" if ratio < 1 else "worse than"
+    return (f"{name}: over the whole rollout the {model} surrogate's error is {ratio:.2f}x that "
+            f"of constant velocity ({word} extrapolating the current velocity); its clot "
+            f"centroid ends {m['final_centroid_error_r']:.2f} r from the truth (CV: "
+            f"{cv['final_centroid_error_r']:.2f} r); at most {100 * m['max_fraction_outside']:.0f}"
+            f" % of its clot is outside the vessel (CV: {100 * cv['max_fraction_outside']:.0f}"
+            " %).")
 
 
 def _calibrate_epochs(data, folder: pathlib.Path, config: DemoConfig, common: dict,
