@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable
 from pathlib import Path
 
 import h5py
+import jax
+import jax.numpy as jnp
 import numpy as np
 
 from thrombojax.io.hdf5 import write_dataset
@@ -186,3 +189,66 @@ def random_model_input(n_real=30, n_pad=10, seed=0):
     node_type = jax.random.bernoulli(k[2], 0.5, (n,)).astype(jnp.int32)
     mask = jnp.arange(n) < n_real
     return ModelInput(positions=pos, velocity=vel, node_type=node_type, mask=mask)
+
+
+def accelerating_sims(n_sims: int = 4, n_nodes: int = 160, n_frames: int = 12, *,
+                      scale: float = 10.0, shift: float = 0.0, prefix: str = "sim",
+                      attrs: dict | None = None) -> list[Simulation]:
+    """Synthetic bent tubes whose clot accelerates along x (a known constant acceleration per
+    simulation, so constant velocity's error grows like k^2): the evaluation and run tests'
+    data."""
+    from thrombojax.eval.bench import synthetic_cloud
+    from thrombojax.types import NodeType
+
+    sims = []
+    for i in range(n_sims):
+        _, x, node_type = synthetic_cloud(n_nodes, clot_fraction=0.25, seed=i)
+        frames = np.repeat(x[None], n_frames, axis=0)
+        clot = node_type == NodeType.CLOT
+        t = np.arange(n_frames, dtype=np.float32)[:, None]
+        frames[:, clot, 0] += 0.001 * t + 0.0002 * (1 + 0.1 * i) * t**2 + shift * t
+        sims.append(Simulation(name=f"{prefix}_{i}", positions=frames * scale,
+                               node_type=node_type.astype(np.int8),
+                               attrs={"dt": 0.01, **(attrs or {})}))
+    return sims
+
+
+TRACES: list[int] = []  # FakeSurrogate appends here each time its graph is traced
+
+
+@dataclasses.dataclass(frozen=True)
+class FakeSurrogate:
+    """A tiny Surrogate: a dense 'graph' (neighbour mean within r) and a linear update; each
+    trace of ``build_graph`` appends to :data:`TRACES` (compile-once tests)."""
+
+    name: str = "fake"
+    radius: float = 0.5
+
+    def build_graph(self, inputs):
+        TRACES.append(1)
+        d = jnp.linalg.norm(inputs.positions[:, None] - inputs.positions[None], axis=-1)
+        return {"adj": (d < self.radius) & inputs.mask[:, None] & inputs.mask[None]}
+
+    def init(self, rng, inputs, graph):
+        k1, k2 = jax.random.split(rng)
+        return {"w": 0.1 * jax.random.normal(k1, (3, 3)), "b": 0.01 * jax.random.normal(k2, (3,))}
+
+    def apply(self, params, inputs, graph, *, train=False, rng=None):
+        adj = graph["adj"].astype(jnp.float32)
+        nbr_mean = adj @ inputs.positions / jnp.maximum(adj.sum(1, keepdims=True), 1.0)
+        return (nbr_mean - inputs.positions) @ params["w"] + inputs.velocity + params["b"]
+
+
+def rollout_state(n: int = 40, seed: int = 0):
+    """``(x_prev, x_cur, node_type, mask, stats)``: every third node clot, the last 3 padded."""
+    from thrombojax.types import NodeType, TargetStats
+
+    rng = np.random.default_rng(seed)
+    x_cur = rng.uniform(-1, 1, (n, 3)).astype(np.float32)
+    x_prev = x_cur - 0.01 * rng.normal(size=(n, 3)).astype(np.float32)
+    node_type = np.where(np.arange(n) % 3 == 0, NodeType.CLOT, NodeType.VESSEL).astype(np.int32)
+    x_prev[node_type == NodeType.VESSEL] = x_cur[node_type == NodeType.VESSEL]
+    mask = np.ones(n, bool)
+    mask[-3:] = False
+    stats = TargetStats(mean=jnp.full(3, 1e-3), std=jnp.full(3, 0.02))
+    return x_prev, x_cur, node_type, mask, stats

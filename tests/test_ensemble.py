@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import dataclasses
 import json
 import shutil
 
@@ -10,6 +9,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from dataset_factory import TRACES, FakeSurrogate, accelerating_sims, rollout_state
 
 from thrombojax.errors import ConfigError, DatasetError
 from thrombojax.eval.uncertainty import (
@@ -27,43 +27,11 @@ from thrombojax.simulator.ensemble import (
     stochastic_rollout,
 )
 from thrombojax.simulator.rollout import rollout
-from thrombojax.types import NodeType, TargetStats
-
-TRACES: list[int] = []  # the fake model appends here each time its graph is traced
-
-
-@dataclasses.dataclass(frozen=True)
-class FakeSurrogate:
-    """A tiny Surrogate: neighbour mean within r and a linear update (as tests/test_rollout.py)."""
-
-    name: str = "fake_ensemble"
-    radius: float = 0.5
-
-    def build_graph(self, inputs):
-        TRACES.append(1)
-        d = jnp.linalg.norm(inputs.positions[:, None] - inputs.positions[None], axis=-1)
-        return {"adj": (d < self.radius) & inputs.mask[:, None] & inputs.mask[None]}
-
-    def init(self, rng, inputs, graph):
-        k1, k2 = jax.random.split(rng)
-        return {"w": 0.1 * jax.random.normal(k1, (3, 3)), "b": 0.01 * jax.random.normal(k2, (3,))}
-
-    def apply(self, params, inputs, graph, *, train=False, rng=None):
-        adj = graph["adj"].astype(jnp.float32)
-        nbr_mean = adj @ inputs.positions / jnp.maximum(adj.sum(1, keepdims=True), 1.0)
-        return (nbr_mean - inputs.positions) @ params["w"] + inputs.velocity + params["b"]
+from thrombojax.types import NodeType
 
 
 def _state(n=40, seed=0):
-    rng = np.random.default_rng(seed)
-    x_cur = rng.uniform(-1, 1, (n, 3)).astype(np.float32)
-    x_prev = x_cur - 0.01 * rng.normal(size=(n, 3)).astype(np.float32)
-    node_type = np.where(np.arange(n) % 3 == 0, NodeType.CLOT, NodeType.VESSEL).astype(np.int32)
-    x_prev[node_type == NodeType.VESSEL] = x_cur[node_type == NodeType.VESSEL]
-    mask = np.ones(n, bool)
-    mask[-3:] = False
-    stats = TargetStats(mean=jnp.full(3, 1e-3), std=jnp.full(3, 0.02))
-    return x_prev, x_cur, node_type, mask, stats
+    return rollout_state(n, seed)
 
 
 def _params(model, seed):
@@ -225,20 +193,11 @@ def test_uncertainty_undefined_values_are_null_in_json():
 
 @pytest.fixture(scope="module")
 def tiny_ensemble(tmp_path_factory):
-    from thrombojax.eval.bench import synthetic_cloud
-    from thrombojax.io.hdf5 import Simulation, write_dataset
+    from thrombojax.io.hdf5 import write_dataset
     from thrombojax.train.ensemble import train_ensemble
 
     root = tmp_path_factory.mktemp("ensemble")
-    sims = []
-    for i in range(4):
-        _, x, node_type = synthetic_cloud(96, clot_fraction=0.25, seed=i)
-        frames = np.repeat(x[None], 8, axis=0)
-        clot = node_type == NodeType.CLOT
-        t = np.arange(8, dtype=np.float32)[:, None]
-        frames[:, clot, 0] += 0.001 * t + 0.0002 * (1 + 0.1 * i) * t**2
-        sims.append(Simulation(name=f"sim_{i}", positions=frames * 10.0,
-                               node_type=node_type.astype(np.int8), attrs={"dt": 0.01}))
+    sims = accelerating_sims(n_nodes=96, n_frames=8, scale=10.0)
     data = write_dataset(root / "tiny.h5", sims, name="tiny-ens", source="test")
     ens = train_ensemble(data, "mgn", root / "ens", 2, seed=3, epochs=1, tiny=True, n_val=1,
                          batch_size=2, warmup_epochs=0, progress=False)

@@ -6,29 +6,20 @@ import json
 
 import numpy as np
 import pytest
+from dataset_factory import accelerating_sims
 from PIL import Image
 
 from thrombojax.cli import main
-from thrombojax.eval.bench import synthetic_cloud
 from thrombojax.types import NodeType
 
 
 @pytest.fixture(scope="module")
 def tiny_run(tmp_path_factory):
-    from thrombojax.io.hdf5 import Simulation, write_dataset
+    from thrombojax.io.hdf5 import write_dataset
     from thrombojax.train.loop import train
 
     root = tmp_path_factory.mktemp("eval")
-    sims = []
-    for i in range(4):
-        _, x, node_type = synthetic_cloud(160, clot_fraction=0.25, seed=i)
-        frames = np.repeat(x[None], 12, axis=0)
-        clot = node_type == NodeType.CLOT
-        t = np.arange(12, dtype=np.float32)[:, None]
-        frames[:, clot, 0] += 0.001 * t + 0.0002 * (1 + 0.1 * i) * t**2
-        sims.append(Simulation(name=f"sim_{i}", positions=frames * 10.0,
-                               node_type=node_type.astype(np.int8),
-                               attrs={"dt": 0.01, "solver_wall_time_s": 2.0}))
+    sims = accelerating_sims(attrs={"solver_wall_time_s": 2.0})
     data = write_dataset(root / "tiny.h5", sims, name="tiny-bend", source="test")
     run = root / "run"
     train(data, "mgn", run, epochs=1, tiny=True, n_val=1, batch_size=2, progress=False)

@@ -2,56 +2,21 @@
 
 from __future__ import annotations
 
-import dataclasses
-
 import jax
-import jax.numpy as jnp
 import numpy as np
 import pytest
+from dataset_factory import TRACES, FakeSurrogate, rollout_state
 
 from thrombojax.data.augment import subsample_indices
 from thrombojax.errors import ConfigError
 from thrombojax.models.registry import create_model, get_config, identity_stats
 from thrombojax.simulator.rollout import constant_velocity_rollout, rollout, rollout_jit, unroll
 from thrombojax.simulator.step import make_step
-from thrombojax.types import NodeType, TargetStats
-
-TRACES: list[int] = []  # the fake model appends here each time its graph is traced
-
-
-@dataclasses.dataclass(frozen=True)
-class FakeSurrogate:
-    """A tiny Surrogate: a dense 'graph' (neighbour mean within r) and a linear update."""
-
-    name: str = "fake"
-    radius: float = 0.5
-
-    def build_graph(self, inputs):
-        TRACES.append(1)
-        d = jnp.linalg.norm(inputs.positions[:, None] - inputs.positions[None], axis=-1)
-        adj = (d < self.radius) & inputs.mask[:, None] & inputs.mask[None]
-        return {"adj": adj}
-
-    def init(self, rng, inputs, graph):
-        k1, k2 = jax.random.split(rng)
-        return {"w": 0.1 * jax.random.normal(k1, (3, 3)), "b": 0.01 * jax.random.normal(k2, (3,))}
-
-    def apply(self, params, inputs, graph, *, train=False, rng=None):
-        adj = graph["adj"].astype(jnp.float32)
-        nbr_mean = adj @ inputs.positions / jnp.maximum(adj.sum(1, keepdims=True), 1.0)
-        return (nbr_mean - inputs.positions) @ params["w"] + inputs.velocity + params["b"]
+from thrombojax.types import NodeType
 
 
 def _state(n=40, seed=0):
-    rng = np.random.default_rng(seed)
-    x_cur = rng.uniform(-1, 1, (n, 3)).astype(np.float32)
-    x_prev = x_cur - 0.01 * rng.normal(size=(n, 3)).astype(np.float32)
-    node_type = np.where(np.arange(n) % 3 == 0, NodeType.CLOT, NodeType.VESSEL).astype(np.int32)
-    x_prev[node_type == NodeType.VESSEL] = x_cur[node_type == NodeType.VESSEL]
-    mask = np.ones(n, bool)
-    mask[-3:] = False
-    stats = TargetStats(mean=jnp.full(3, 1e-3), std=jnp.full(3, 0.02))
-    return x_prev, x_cur, node_type, mask, stats
+    return rollout_state(n, seed)
 
 
 def test_rollout_compiles_once_and_each_step_is_the_learned_step():

@@ -10,27 +10,17 @@ import shutil
 
 import numpy as np
 import pytest
+from dataset_factory import accelerating_sims
 
 from thrombojax.cli import main
 from thrombojax.errors import ConfigError
-from thrombojax.eval.bench import synthetic_cloud
 from thrombojax.io.hdf5 import Simulation, open_dataset, write_dataset
 from thrombojax.train.config import TrainConfig, load_config_file
 from thrombojax.train.guards import NonFiniteError, check_finite, check_in_box
-from thrombojax.types import NodeType
 
 
 def tiny_sims(scale: float = 10.0, shift: float = 0.0, prefix: str = "sim") -> list[Simulation]:
-    sims = []
-    for i in range(4):
-        _, x, node_type = synthetic_cloud(160, clot_fraction=0.25, seed=i)
-        frames = np.repeat(x[None], 12, axis=0)
-        clot = node_type == NodeType.CLOT
-        t = np.arange(12, dtype=np.float32)[:, None]
-        frames[:, clot, 0] += 0.001 * t + 0.0002 * (1 + 0.1 * i) * t**2 + shift * t
-        sims.append(Simulation(name=f"{prefix}_{i}", positions=frames * scale,
-                               node_type=node_type.astype(np.int8), attrs={"dt": 0.01}))
-    return sims
+    return accelerating_sims(scale=scale, shift=shift, prefix=prefix)
 
 
 @pytest.fixture(scope="module")
