@@ -86,6 +86,10 @@ def test_many_series_into_one_file_and_cli(tmp_path, capsys):
     assert main(argv) == 2  # exists, no --force
     assert "already exists" in capsys.readouterr().err
     assert main([*argv, "--force"]) == 0
+    assert ds.attrs["kind"] == "unknown" and ds.attrs["skip_frames"] == 0
+    assert main([*argv, "--force", "--kind", "bendvessel", "--skip-frames", "3"]) == 0
+    ds = open_dataset(tmp_path / "b.h5")
+    assert (ds.attrs["kind"], ds.attrs["skip_frames"]) == ("bendvessel", 3)
     one_name = ["import", "vtu", *folders, "--out", str(tmp_path / "c.h5"), "--name", "n",
                 "--units", "mm"]
     assert main(one_name) == 2 and not (tmp_path / "c.h5").exists()

@@ -47,6 +47,10 @@ def _import_common(p) -> None:
     p.add_argument("--units", required=True, metavar="UNIT",
                    help="length unit of the coordinates, e.g. mm, m or 'vessel radius' "
                         "(stored in the dataset, shown in every report and picture)")
+    p.add_argument("--kind", default="unknown", choices=("bendvessel", "clotentry", "unknown"),
+                   help="which of the study's datasets this is like (default unknown)")
+    p.add_argument("--skip-frames", type=NN_INT, default=0, help="leading frames rollouts skip "
+                   "(the clot still entering; the study: 5 BendVessel, 40 ClotEntry; default 0)")
     output_flags(p, "overwrite FILE if it exists")
 
 
@@ -119,6 +123,7 @@ def _run_import_mesh(args) -> int:
         args.sources, args.out, names=args.names, dataset_name=args.dataset_name,
         node_type_array=args.node_type_array, dt=args.dt,
         reference_wall_time_s=args.reference_time, units=args.units, overwrite=args.force,
+        kind=args.kind, skip_frames=args.skip_frames,
         progress=not args.quiet,
     )
     print(f"wrote {out}")
@@ -132,6 +137,7 @@ def _run_import_abaqus(args) -> int:
         args.inp, args.frames, args.out, names=args.names, dataset_name=args.dataset_name,
         clot_sets=args.clot_set, vessel_sets=args.vessel_set, dt=args.dt,
         reference_wall_time_s=args.reference_time, units=args.units, overwrite=args.force,
+        kind=args.kind, skip_frames=args.skip_frames,
         progress=not args.quiet,
     )
     print(f"wrote {out}")

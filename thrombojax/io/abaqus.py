@@ -40,6 +40,7 @@ from thrombojax.io.frames import read_frames, source_name
 from thrombojax.io.hdf5 import write_dataset
 from thrombojax.io.outputs import input_files
 from thrombojax.io.schema import Simulation, simulation_error, validate_simulation
+from thrombojax.study import UNKNOWN_KIND
 from thrombojax.types import NodeType
 
 __all__ = [
@@ -258,7 +259,8 @@ def import_abaqus(
     dataset_name: str | None = None, clot_sets: Sequence[str] | None = None,
     vessel_sets: Sequence[str] | None = None, dt: float | None = None,
     reference_wall_time_s: float | None = None, units: str = "vessel radius",
-    overwrite: bool = False, progress: bool = True,
+    overwrite: bool = False, progress: bool = True, kind: str = UNKNOWN_KIND,
+    skip_frames: int = 0,
 ) -> Path:
     """Import Abaqus simulations (one ``.inp`` for all, or one per frames source) into one file.
 
@@ -272,6 +274,8 @@ def import_abaqus(
         dataset_name: file attribute ``name`` (default: ``out``'s stem).
         units: length unit of the coordinates (file attribute ``units``, shown in reports).
         overwrite, progress: replace an existing ``out``; progress bar over simulations.
+        kind, skip_frames: which of the study's datasets this is like and the leading frames
+            rollouts skip (file attributes, :mod:`thrombojax.study`; default ``unknown``, 0).
     Returns:
         The written path.
     """
@@ -285,4 +289,5 @@ def import_abaqus(
             for i, f, n in zip(inps, frames, _names(names, len(frames)), strict=True))
     return write_dataset(out, sims, name=dataset_name or Path(out).stem, source="abaqus import",
                          units=units, overwrite=overwrite, progress=progress,
+                         kind=kind, skip_frames=skip_frames,
                          inputs=input_files([*inps, *frames]))

@@ -47,6 +47,7 @@ from thrombojax.io.hdf5 import write_dataset
 from thrombojax.io.outputs import input_files
 from thrombojax.io.schema import Simulation, simulation_error, validate_simulation
 from thrombojax.io.series_file import is_series_file, read_pvd, read_xdmf_series, series_dt
+from thrombojax.study import UNKNOWN_KIND
 from thrombojax.types import NodeType
 
 __all__ = [
@@ -233,7 +234,8 @@ def import_mesh_series(
     names: Sequence[str] | None = None, dataset_name: str | None = None,
     node_type_array: str | None = None, dt: float | None = None,
     reference_wall_time_s: float | None = None, units: str = "vessel radius",
-    overwrite: bool = False, progress: bool = True,
+    overwrite: bool = False, progress: bool = True, kind: str = UNKNOWN_KIND,
+    skip_frames: int = 0,
 ) -> Path:
     """Import mesh-file series (one folder or glob per simulation) into one dataset file.
 
@@ -248,6 +250,8 @@ def import_mesh_series(
         units: length unit of the coordinates (file attribute ``units``, shown in reports).
         overwrite: replace an existing ``out``.
         progress: progress bar over simulations.
+        kind, skip_frames: which of the study's datasets this is like and the leading frames
+            rollouts skip (file attributes, :mod:`thrombojax.study`; default ``unknown``, 0).
     Returns:
         The written path. Simulations are read and written one at a time.
     """
@@ -261,4 +265,5 @@ def import_mesh_series(
             for src, n in zip(sources, _names(names, len(sources)), strict=True))
     return write_dataset(out, sims, name=dataset_name or Path(out).stem, source="meshio import",
                          units=units, overwrite=overwrite, progress=progress,
+                         kind=kind, skip_frames=skip_frames,
                          inputs=input_files(sources))
