@@ -243,3 +243,12 @@ def test_rollout_of_an_ensemble_reports_its_spread(tiny_run):
     assert rep["ensemble_members"] == 2
     spread = rep["simulations"]["sim_0"]["curves"]["mgn"]["spread"]
     assert len(spread) == rep["simulations"]["sim_0"]["n_steps"] and max(spread) > 0
+
+
+def test_train_members_cli_makes_an_ensemble(tiny_run, capsys):
+    data, _, root = tiny_run
+    assert main(["train", "--dataset", str(data), "--model", "mgn", "--out",
+                 str(root / "cli_ens"), "--members", "2", "--epochs", "1", "--tiny",
+                 "--n-val", "1", "--batch-size", "2", "--warmup-epochs", "0", "--quiet"]) == 0
+    assert "ensemble of 2 mgn members" in capsys.readouterr().out
+    assert (root / "cli_ens" / "ensemble.json").is_file()

@@ -59,6 +59,8 @@ def _add_train(sub) -> None:
                    "(default 1: single-step loss)")
     p.add_argument("--pushforward-steps", type=NN_INT, help="steps applied without gradients "
                    "before the loss steps (push-forward training; default 0)")
+    p.add_argument("--members", type=POS_INT, default=1, help="train an ensemble of M members "
+                   "differing only by seed into DIR/member_<i> (rollouts then report spread)")
     p.add_argument("--curriculum-epochs", type=NN_FLOAT, help="grow k from 1 to "
                    "--rollout-steps over this many epochs (default 0: k from the start)")
     p.add_argument("--n-val", type=NN_INT, help="validation simulations (default 2)")
@@ -85,6 +87,17 @@ def _run_train(args) -> int:
         overrides["model_config"] = {**base.model_config, "radius": args.radius}
     from thrombojax.train.summary import run_summary
 
+    if args.members > 1:  # an ensemble: members differ only by seed (seed + i)
+        from thrombojax.train.ensemble import train_ensemble
+
+        seed = overrides.pop("seed", 0)
+        ens = train_ensemble(args.dataset, args.model, args.out, args.members, seed=seed,
+                             resume=args.resume, config=config, progress=not args.quiet,
+                             force=args.force, **overrides)
+        print(f"trained an ensemble of {ens.n_members} {ens.model.name} members (seeds "
+              f"{ens.seeds}) in {args.out}/; roll it out with 'thrombojax rollout --run "
+              f"{args.out}'")
+        return 0
     trained = train(args.dataset, args.model, args.out, config=config, resume=args.resume,
                     progress=not args.quiet, distributed=args.distributed, force=args.force,
                     **overrides)
