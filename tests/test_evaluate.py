@@ -243,6 +243,8 @@ def test_rollout_of_an_ensemble_reports_its_spread(tiny_run):
     assert rep["ensemble_members"] == 2
     spread = rep["simulations"]["sim_0"]["curves"]["mgn"]["spread"]
     assert len(spread) == rep["simulations"]["sim_0"]["n_steps"] and max(spread) > 0
+    unc = rep["simulations"]["sim_0"]["summary"]["mgn"]["uncertainty"]
+    assert {"spearman", "calibration", "within_2_spread"} <= set(unc)
 
 
 def test_train_members_cli_makes_an_ensemble(tiny_run, capsys):

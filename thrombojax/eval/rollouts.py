@@ -21,6 +21,7 @@ from thrombojax.eval.metrics import (
     horizon_mse,
     mse_per_step,
 )
+from thrombojax.eval.uncertainty import uncertainty_summary
 from thrombojax.models.registry import Surrogate
 from thrombojax.simulator.ensemble import ensemble_rollout
 from thrombojax.simulator.guard_set import build_guards
@@ -152,7 +153,8 @@ def rollout_simulation(
     for guard, moved in corrections.items():  # the model is wrong where the guards act
         curves[label][f"guard_{guard}"] = np.asarray(moved).max(axis=1)
         summary[label][f"max_guard_{guard}"] = float(np.asarray(moved).max())
-    if spread is not None:
+    if spread is not None:  # how well the ensemble's spread predicts its error (scaled units)
         curves[label]["spread"] = spread[:, clot].mean(axis=1)
+        summary[label]["uncertainty"] = uncertainty_summary(pred, spread, true, sub_type)
     return RolloutResult(name, t0, idx, sub_type, np.stack([x_prev, x0]), pred, true, base,
                          curves, summary, spread)
