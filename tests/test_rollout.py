@@ -20,7 +20,7 @@ def _state(n=40, seed=0):
 
 
 def test_rollout_compiles_once_and_each_step_is_the_learned_step():
-    model = FakeSurrogate()
+    model = FakeSurrogate(name="compile-once")  # its own jit cache entry in this process
     x_prev, x_cur, node_type, mask, stats = _state()
     params = model.init(jax.random.key(0), None, None)
     TRACES.clear()
