@@ -22,6 +22,7 @@ from matplotlib.animation import FuncAnimation, PillowWriter  # noqa: E402
 from matplotlib.ticker import MaxNLocator  # noqa: E402
 
 from thrombojax.errors import ConfigError  # noqa: E402
+from thrombojax.plotting.scene import save_atomic  # noqa: E402
 from thrombojax.plotting.ticks import readable_value_axis  # noqa: E402
 from thrombojax.types import NodeType  # noqa: E402
 
@@ -102,8 +103,6 @@ def plot_rollout_metrics(
 
 
 def _save(fig, path) -> pathlib.Path:
-    from thrombojax.plotting.scene import save_atomic
-
     fig.tight_layout()
     path = save_atomic(lambda tmp: fig.savefig(tmp, format="png"), path)
     plt.close(fig)
@@ -302,7 +301,6 @@ def animate_rollout(
         pred, true, node_type, max_wall_points=max_wall_points, title=title, labels=labels,
         seed=seed, first_frame=first_frame, dt=dt, units=units, time_unit=time_unit,
         correction=correction, spread=spread)
-    from thrombojax.plotting.scene import save_atomic
 
     anim = FuncAnimation(fig, update, frames=n_frames, blit=False)
     try:

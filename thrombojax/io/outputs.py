@@ -19,6 +19,7 @@
 from __future__ import annotations
 
 import contextlib
+import glob
 import hashlib
 import os
 import re
@@ -141,8 +142,6 @@ def check_targets(targets: Iterable[str | os.PathLike], **kwargs) -> list[Path]:
 def input_files(sources: Iterable) -> list[Path]:
     """The files behind input arguments: files, the files of folders (one level), glob matches,
     lists of files. Used to refuse an output that would replace one of them."""
-    import glob
-
     out: list[Path] = []
     for src in sources:
         if isinstance(src, list | tuple):

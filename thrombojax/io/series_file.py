@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from thrombojax.io.schema import simulation_error
+from thrombojax.io.xdmf_read import read_xdmf_temporal
 
 __all__ = ["SERIES_SUFFIXES", "is_series_file", "read_pvd", "read_xdmf_series", "series_dt"]
 
@@ -97,8 +98,6 @@ def read_xdmf_series(path: str | os.PathLike, name: str):
         and node arrays), ``[T, N, 3]`` float32 points of every step, ``[T]`` times.
     """
     import meshio
-
-    from thrombojax.io.xdmf_read import read_xdmf_temporal
 
     path = Path(path)
     root = _xml_root(path, name)

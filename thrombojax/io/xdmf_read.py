@@ -21,6 +21,7 @@ import os
 from dataclasses import dataclass
 from pathlib import Path
 
+import h5py
 import numpy as np
 
 from thrombojax.io.schema import simulation_error
@@ -47,7 +48,6 @@ class XdmfSeries:
         point_data: the first step's node arrays (``position`` excluded).
         positions: ``[T, N, 3]`` float32 points of every step. times: ``[T]`` float64.
     """
-
     cells: list
     point_data: dict
     positions: np.ndarray
@@ -64,7 +64,6 @@ def _data_item(item, folder: Path, path: Path, name: str, field: str) -> np.ndar
         if fmt == "XML":
             return np.array(text.split(), np.float64).reshape(dims)
         if fmt == "HDF":
-            import h5py
 
             file, _, inner = text.partition(":")
             with h5py.File(folder / file, "r") as f:

@@ -14,10 +14,13 @@ from __future__ import annotations
 
 import hashlib
 import math
+import pathlib
+import shutil
 import warnings
 from collections.abc import Iterable, Mapping
 from typing import Any
 
+import jax
 import numpy as np
 
 from thrombojax.errors import ConfigError, DatasetError, ThrombojaxError
@@ -152,8 +155,6 @@ RUN_FILES = ("config.json", "metrics.jsonl", "loss.png")
 def clear_run(run_dir: Any) -> None:
     """Remove a previous run's files from ``run_dir`` (``train --force``): its checkpoints,
     ``config.json``, ``metrics.jsonl`` and ``loss.png``; nothing else in the folder."""
-    import pathlib
-    import shutil
 
     run_dir = pathlib.Path(run_dir)
     shutil.rmtree(run_dir / "checkpoints", ignore_errors=True)
@@ -173,8 +174,6 @@ LARGE_CPU_NODES = 10_000
 
 def warn_large_cpu_cases(cases: Iterable[str], n_nodes: int | None, table: Mapping) -> None:
     """Warn before timing cases of ``LARGE_CPU_NODES`` nodes or more on a CPU (minutes each)."""
-    import jax
-
     if jax.default_backend() != "cpu":
         return
     big = [c for c in cases if c in table and (n_nodes or table[c].n_nodes) >= LARGE_CPU_NODES]

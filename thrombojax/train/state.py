@@ -32,6 +32,7 @@ from flax import struct
 from thrombojax.data.scaling import Scaling
 from thrombojax.data.splits import Split
 from thrombojax.errors import ConfigError
+from thrombojax.io.outputs import atomic_write_text
 from thrombojax.models.registry import Surrogate, config_from_dict, create_model
 from thrombojax.simulator.step import make_input
 from thrombojax.train.config import RunConfig
@@ -173,8 +174,6 @@ def restore_checkpoint(
 
 def write_run_config(run_dir: str | pathlib.Path, config: dict) -> None:
     """Write ``run_dir/config.json`` (atomically)."""
-    from thrombojax.io.outputs import atomic_write_text
-
     atomic_write_text(pathlib.Path(run_dir) / "config.json",
                       json.dumps(config, indent=2, sort_keys=True, default=_json_default))
 
