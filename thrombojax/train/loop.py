@@ -223,7 +223,9 @@ def train(
         radius=cfg.bary_radius or model_cfg.radius, max_neighbors=cfg.bary_max_neighbors,
     )
     augment = jax.jit(functools.partial(augment_batch, config=aug_cfg))
-    noise_std = cfg.noise_std * vessel_radius(ds) / float(scaling.scale)  # radii -> scaled
+    # radii -> scaled; the radius (possibly a geometric estimate) only when noise is on
+    noise_std = (cfg.noise_std * vessel_radius(ds) / float(scaling.scale)
+                 if cfg.noise_std > 0 else 0.0)
     train_steps: dict[int, Callable] = {}
 
     def train_step_at(epoch: int) -> Callable:
