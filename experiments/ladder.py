@@ -81,11 +81,13 @@ RUNGS: tuple[Rung, ...] = (
     Rung("guards", {}, guards=True, reuse="kstep"),
     Rung("rotation", {**NOISE, "pushforward_steps": 1, "rollout_steps": 3,
                       "curriculum_epochs": 6, "max_rotation": np.pi}, guards=True),
+    Rung("frame", {**NOISE, "pushforward_steps": 1, "rollout_steps": 3,
+                   "curriculum_epochs": 6, "frame": "vessel"}, guards=True),
 )
 
 
 def _train_rung(rung: Rung, data: str, folder: pathlib.Path, split: dict, minutes: float,
-                max_epochs: int) -> pathlib.Path:
+                max_epochs: int, epochs: int | None = None) -> pathlib.Path:
     run = folder / "run"
     cfg = {**COMMON, **rung.train, **split}
     if latest_step(run / "checkpoints" / "last") is not None:
@@ -94,6 +96,10 @@ def _train_rung(rung: Rung, data: str, folder: pathlib.Path, split: dict, minute
                 _finished(run, info["total_steps"]):
             return run
         train(data, "mgn", run, resume=True, progress=False)
+        return run
+    if epochs is not None:
+        print(f"  {rung.name}: {epochs} epochs (fixed)", flush=True)
+        train(data, "mgn", run, epochs=epochs, progress=False, **cfg)
         return run
     calib = folder / "calibration"
     stamps: list[float] = []
@@ -117,7 +123,7 @@ def _evaluate(run: pathlib.Path, data: str, guards: bool) -> dict:
     ds = open_dataset(data)
     skip = max(study.skip_frames(ds), 1)
     r = vessel_radius(ds) / float(trained.scaling.scale)  # one radius, scaled coordinates
-    step, cv = make_step(trained.model), make_step(create_model("constant_velocity"))
+    step, cv = trained.step, make_step(create_model("constant_velocity"))
     per_sim = {}
     for name in trained.split.test:
         pos, nt = scaled_simulation(ds, name, trained.scaling)
@@ -128,7 +134,7 @@ def _evaluate(run: pathlib.Path, data: str, guards: bool) -> dict:
         mask = np.ones(len(nt), bool)
         g = build_guards(pos[0], nt, pos[skip], nt, radius=r,
                          wall_cells=ds[name].wall_cells) if guards else None
-        pred, corr = rollout_with_corrections(trained.model, trained.params, trained.stats,
+        pred, corr = rollout_with_corrections(trained.step, trained.params, trained.stats,
                                               pos[skip - 1], pos[skip], nt, mask, n, guards=g)
         pred = np.asarray(pred)
         true = pos[skip + 1:]
@@ -202,6 +208,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", required=True, help="results folder (resumable)")
     parser.add_argument("--minutes", type=float, default=6.0, help="training budget per rung")
     parser.add_argument("--max-epochs", type=int, default=200)
+    parser.add_argument("--epochs", type=int, default=None,
+                        help="a fixed epoch count per rung instead of the timed budget (the "
+                        "same work per rung whatever else loads the machine)")
     parser.add_argument("--test", default="bendvessel_005,bendvessel_012,bendvessel_019",
                         help="held-out simulations (comma-separated)")
     parser.add_argument("--val", default="bendvessel_009", help="validation simulations")
@@ -223,7 +232,7 @@ def main(argv: list[str] | None = None) -> int:
         folder.mkdir(exist_ok=True)
         t = time.perf_counter()
         run = (out / rung.reuse / "run") if rung.reuse else _train_rung(
-            rung, args.dataset, folder, split, args.minutes, args.max_epochs)
+            rung, args.dataset, folder, split, args.minutes, args.max_epochs, args.epochs)
         res = _evaluate(run, args.dataset, rung.guards)
         res.update(rung=dataclasses.asdict(rung) | {"train": {k: str(v) for k, v in
                                                                rung.train.items()}},

@@ -6,7 +6,7 @@ The public API, re-exported explicitly (each name from the module that defines i
     tj.generate_dataset("bendvessel", "bv.h5")            # the built-in JAX FEM solver
     ds = tj.open_dataset("bv.h5")                          # the one dataset schema
     trained = tj.train("bv.h5", "mgn", "runs/mgn")         # AdamW, checkpoints, resume
-    traj = tj.rollout(trained.model, trained.params, trained.stats, x_prev, x0, node_type,
+    traj = tj.rollout(trained.step, trained.params, trained.stats, x_prev, x0, node_type,
                       mask, n_steps)                       # one compiled lax.scan
 
 Names are imported lazily on first access (PEP 562), so ``thrombojax --help`` and

@@ -58,12 +58,15 @@ class ModelInput:
         velocity: ``[n_nodes, 3]`` v_t = s_t - s_{t-1}.
         node_type: ``[n_nodes]`` int32 :class:`NodeType` values (padded nodes: VESSEL).
         mask: ``[n_nodes]`` bool, True for real nodes, False for padding.
+        extra: ``[n_nodes, F]`` more per-node features appended to :attr:`node_features`
+            (the learned step's wall features), or None.
     """
 
     positions: jax.Array
     velocity: jax.Array
     node_type: jax.Array
     mask: jax.Array
+    extra: jax.Array | None = None
 
     @property
     def n_nodes(self) -> int:
@@ -71,10 +74,13 @@ class ModelInput:
 
     @property
     def node_features(self) -> jax.Array:
-        """``[n_nodes, 3 + NUM_NODE_TYPES]`` the per-node input of every model: the
-        (normalised) velocity and the node-type one-hot (positions enter only through the
-        graph's relative displacements)."""
-        return jnp.concatenate([self.velocity, node_type_one_hot(self.node_type)], axis=-1)
+        """``[n_nodes, 3 + NUM_NODE_TYPES (+ F)]`` the per-node input of every model: the
+        (normalised) velocity, the node-type one-hot and :attr:`extra` when set (positions
+        enter only through the graph's relative displacements)."""
+        parts = [self.velocity, node_type_one_hot(self.node_type)]
+        if self.extra is not None:
+            parts.append(self.extra)
+        return jnp.concatenate(parts, axis=-1)
 
     @property
     def clot_mask(self) -> jax.Array:

@@ -63,6 +63,12 @@ def _add_train(sub) -> None:
                    "differing only by seed into DIR/member_<i> (rollouts then report spread)")
     p.add_argument("--curriculum-epochs", type=NN_FLOAT, help="grow k from 1 to "
                    "--rollout-steps over this many epochs (default 0: k from the start)")
+    p.add_argument("--frame", choices=("global", "vessel"), help="frame of the learned step: "
+                   "'vessel' works in the rigid vessel's principal axes (exactly invariant to "
+                   "the vessel's orientation); default 'global'")
+    p.add_argument("--wall-features", type=NN_FLOAT, help="give clot nodes the distance and "
+                   "direction to the nearest vessel node, cut off at this many vessel radii "
+                   "(default 0: off)")
     p.add_argument("--n-val", type=NN_INT, help="validation simulations (default 2)")
     p.add_argument("--n-test", type=NN_INT, help="test simulations, never trained on (default 1)")
     p.add_argument("--tiny", action="store_true", default=None, help="tiny model config")
@@ -79,7 +85,7 @@ def _run_train(args) -> int:
     names = ("epochs", "batch_size", "lr", "warmup_epochs", "max_rotation",
              "nodes_per_sample", "bary_ratio", "noise_std", "seed", "skip_frames", "n_val",
              "n_test", "tiny", "rollout_steps", "noise_gamma", "pushforward_steps",
-             "curriculum_epochs")
+             "curriculum_epochs", "frame", "wall_features")
     overrides = {k: getattr(args, k) for k in names if getattr(args, k) is not None}
     config = load_config_file(args.config) if args.config else None
     if args.radius is not None:

@@ -28,6 +28,7 @@ from thrombojax.data.augment import subsample_indices
 from thrombojax.data.scaling import Scaling
 from thrombojax.data.windows import window_times
 from thrombojax.errors import ConfigError, DatasetError
+from thrombojax.graph.frame import vessel_frame
 from thrombojax.io.hdf5 import Dataset
 from thrombojax.types import NodeType, TargetStats, clot_mask
 
@@ -216,7 +217,8 @@ def make_batch(
 
 
 def compute_target_stats(
-    store: WindowStore, *, isotropic: bool = False, min_std: float = 1e-8
+    store: WindowStore, *, isotropic: bool = False, frame: str = "global",
+    min_std: float = 1e-8,
 ) -> TargetStats:
     """Statistics of ``a_t = s_{t+1} - 2 s_t + s_{t-1}`` over the clot nodes of every window.
 
@@ -227,6 +229,10 @@ def compute_target_stats(
       and one RMS ``sqrt(E|a|^2 / 3)`` for all axes. Per-axis statistics would be wrong for
       rotated samples: a clot moving in a plane has a near-zero standard deviation along the
       plane's normal, and a rotated sample's acceleration along that axis would be blown up.
+
+    * ``frame="vessel"``: the statistics of the acceleration expressed in each simulation's
+      vessel frame (:func:`thrombojax.graph.frame.vessel_frame`), what a learned step in that
+      frame predicts; combine with ``isotropic=False`` (the frame makes rotations irrelevant).
 
     ``velocity_std`` is the isotropic RMS ``sqrt(E|v|^2 / 3)`` of ``v_t = s_t - s_{t-1}`` over
     the same clot nodes (one number for all axes, so it is rotation-invariant).
@@ -246,6 +252,9 @@ def compute_target_stats(
             continue
         clot = clot_mask(store.node_type[sim])
         p = pos[:, clot].astype(np.float64)
+        if frame == "vessel":
+            axes = np.asarray(vessel_frame(pos[0], store.node_type[sim]).axes, np.float64)
+            p = p @ axes
         accel = p[times + 1] - 2.0 * p[times] + p[times - 1]
         total += accel.sum(axis=(0, 1))
         total_sq += (accel**2).sum(axis=(0, 1))

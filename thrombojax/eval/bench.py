@@ -247,7 +247,7 @@ def bench(
         (x_prev, x_cur, node_type), source = _inputs(case, ds, seed)
         if model_name in runs:
             trained = load_trained(runs[model_name])
-            model, params, stats, weights = trained.model, trained.params, trained.stats, "trained"
+            model, params, stats, weights = trained.step, trained.params, trained.stats, "trained"
             config = run_config_label(runs[model_name], trained.config)
         else:
             model = create_model(model_name, get_config(model_name, tiny=tiny))

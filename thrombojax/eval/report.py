@@ -51,7 +51,6 @@ from thrombojax.eval.truth_tables import rollout_markdown
 from thrombojax.io.export import export_trajectory
 from thrombojax.io.hdf5 import Simulation, open_dataset, write_dataset
 from thrombojax.io.outputs import atomic_path, atomic_write_text, check_targets, safe_stems
-from thrombojax.simulator.step import make_step
 from thrombojax.train.ensemble import load_ensemble
 from thrombojax.train.guards import check_finite, check_in_box
 from thrombojax.train.state import load_trained
@@ -223,7 +222,7 @@ def rollout_run(
     check_targets([*targets, out_dir / "rollout.json", out_dir / "rollout.md"],
                   inputs=(dataset_path,), force=force, what="rollout output")
     units = radius_units(trained.scaling, ds)
-    step = make_step(trained.model)
+    step = trained.step
     out_dir.mkdir(parents=True, exist_ok=True)
     report = {}
     for name in tqdm(names, desc=f"rollout {trained.model.name}", unit="sim",
@@ -231,7 +230,7 @@ def rollout_run(
         sim = ds[name]
         pos, node_type = scaled_simulation(ds, name, trained.scaling)
         check_in_box(pos, name, dataset_path, run_dir)
-        res = rollout_simulation(trained.model, params, trained.stats, pos, node_type,
+        res = rollout_simulation(step, params, trained.stats, pos, node_type,
                                  name=name, t0=max(skip, 1), n_steps=n_steps, n_nodes=n_nodes,
                                  seed=seed, wall_cells=sim.wall_cells, ensemble=ensemble,
                                  guard_radius=1.0 / units.factor if guards else None)

@@ -286,7 +286,7 @@ def evaluate_run(
                                    dataset_path=dataset_path, run_dir=run_dir)
     units = radius_units(trained.scaling, ds)
     skip_frames = study.skip_frames(ds)
-    step = make_step(trained.model)
+    step = trained.step
     n_nodes = n_nodes or trained.run.train.nodes_per_sample
     per_sim, windows = {}, []
     for name in tqdm(names, desc="evaluate", unit="sim", disable=not progress):

@@ -19,6 +19,18 @@ The step, in scaled [-1, 1] coordinates::
 
 :class:`LearnedStep` is a frozen, hashable dataclass, so it is a static argument of ``jax.jit``
 (one compilation per surrogate and shapes).
+
+Frames: ``make_step(model, frame="vessel")`` runs the model in the frame of the rigid vessel
+(:func:`thrombojax.graph.frame.vessel_frame`): positions and velocities enter in that frame's
+coordinates and the predicted acceleration is rotated back, so the step is exactly invariant to
+the vessel's global orientation (rotations never seen in training included). ``stats`` are then
+statistics of the acceleration in that frame (``compute_target_stats(..., frame="vessel")``),
+and :meth:`LearnedStep.normalized_target` is what the training loss compares ``output`` with.
+
+Wall features: ``make_step(model, wall_cutoff=c)`` (``c > 0``, scaled units) appends to every
+clot node's input the distance and direction to its nearest vessel node
+(:func:`thrombojax.graph.wall_nodes.wall_node_features`), so the model knows where the wall is
+even when no vessel node is among its graph neighbours.
 """
 
 from __future__ import annotations
@@ -30,6 +42,9 @@ import jax
 import jax.numpy as jnp
 from flax import struct
 
+from thrombojax.errors import ConfigError
+from thrombojax.graph.frame import FRAMES, VesselFrame, vessel_frame
+from thrombojax.graph.wall_nodes import wall_node_features
 from thrombojax.models.registry import Surrogate
 from thrombojax.types import ModelInput, TargetStats, clot_mask
 
@@ -117,21 +132,61 @@ class LearnedStep:
 
     Attributes:
         model: the surrogate (:func:`thrombojax.models.create_model`).
+        frame: ``"global"`` (the dataset's axes) or ``"vessel"`` (the rigid vessel's frame,
+            see the module docstring).
+        wall_cutoff: cutoff of the wall features in scaled units (0: no wall features).
     """
 
     model: Surrogate
+    frame: str = "global"
+    wall_cutoff: float = 0.0
+
+    def __post_init__(self) -> None:
+        if self.frame not in FRAMES:
+            raise ConfigError(f"learned step: frame must be one of {list(FRAMES)}, "
+                              f"got {self.frame!r}")
+        if not (self.wall_cutoff >= 0 and self.wall_cutoff < float("inf")):
+            raise ConfigError(f"learned step: wall_cutoff must be a finite number >= 0, "
+                              f"got {self.wall_cutoff!r}")
 
     @property
     def name(self) -> str:
         """The surrogate's registry name."""
         return self.model.name
 
+    def frame_of(
+        self, x_cur: jax.Array, node_type: jax.Array, mask: jax.Array
+    ) -> VesselFrame | None:
+        """The frame the model works in (None: the global frame, nothing is transformed)."""
+        return None if self.frame == "global" else vessel_frame(x_cur, node_type, mask)
+
     def inputs(
         self, stats: TargetStats, x_prev: jax.Array, x_cur: jax.Array, node_type: jax.Array,
         mask: jax.Array,
     ) -> ModelInput:
-        """The model input of frame t (velocity normalised by ``stats.velocity_std``)."""
-        return make_input(x_prev, x_cur, node_type, mask, stats.velocity_std)
+        """The model input of frame t (velocity normalised by ``stats.velocity_std``), in the
+        step's frame, with the wall features when the step has them."""
+        frame = self.frame_of(x_cur, node_type, mask)
+        return self._inputs(frame, stats.velocity_std, x_prev, x_cur, node_type, mask)
+
+    def _inputs(self, frame, velocity_scale, x_prev, x_cur, node_type, mask) -> ModelInput:
+        if frame is not None:
+            x_prev, x_cur = frame.points(x_prev), frame.points(x_cur)
+        inputs = make_input(x_prev, x_cur, node_type, mask, velocity_scale)
+        if self.wall_cutoff > 0:
+            extra = wall_node_features(x_cur, node_type, mask, cutoff=self.wall_cutoff)
+            inputs = inputs.replace(extra=extra)
+        return inputs
+
+    def normalized_target(
+        self, stats: TargetStats, accel: jax.Array, x_ref: jax.Array, node_type: jax.Array,
+        mask: jax.Array,
+    ) -> jax.Array:
+        """What ``StepOutput.output`` should be: ``stats.normalize`` of the global acceleration
+        ``accel [..., n_nodes, 3]`` expressed in the step's frame (taken from ``x_ref``, any
+        frame of the simulation: the vessel does not move)."""
+        frame = self.frame_of(x_ref, node_type, mask)
+        return stats.normalize(accel if frame is None else frame.vectors(accel))
 
     def __call__(
         self,
@@ -155,10 +210,14 @@ class LearnedStep:
         Returns:
             The :class:`StepOutput`.
         """
-        inputs = self.inputs(stats, x_prev, x_cur, node_type, mask)
+        frame = self.frame_of(x_cur, node_type, mask)
+        inputs = self._inputs(frame, stats.velocity_std, x_prev, x_cur, node_type, mask)
         graph = self.model.build_graph(inputs)
         out = self.model.apply(params, inputs, graph, train=train, rng=rng)
-        x_next = integrate(x_prev, x_cur, stats.denormalize(out), node_type, mask)
+        accel = stats.denormalize(out)
+        if frame is not None:
+            accel = frame.vectors_to_global(accel)
+        x_next = integrate(x_prev, x_cur, accel, node_type, mask)
         return StepOutput(positions=x_next, output=out)
 
     def init(
@@ -172,10 +231,12 @@ class LearnedStep:
 
 @functools.partial(jax.jit, static_argnums=0)
 def _init(step: LearnedStep, rng, x_prev, x_cur, node_type, mask) -> dict:
-    inputs = make_input(x_prev, x_cur, node_type, mask)
+    inputs = step._inputs(step.frame_of(x_cur, node_type, mask), 1.0, x_prev, x_cur, node_type,
+                          mask)
     return step.model.init(rng, inputs, step.model.build_graph(inputs))
 
 
-def make_step(model: Surrogate) -> LearnedStep:
-    """The learned simulator of a surrogate (see the module docstring)."""
-    return LearnedStep(model=model)
+def make_step(model: Surrogate, frame: str = "global", wall_cutoff: float = 0.0) -> LearnedStep:
+    """The learned simulator of a surrogate in ``frame``, with wall features when
+    ``wall_cutoff > 0`` (see the module docstring)."""
+    return LearnedStep(model=model, frame=frame, wall_cutoff=float(wall_cutoff))

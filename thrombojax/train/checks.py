@@ -33,6 +33,7 @@ _RULES: dict[str, tuple[str, float, bool, bool]] = {
     "bary_radius": ("float", 0.0, False, True),
     "bary_max_neighbors": ("int", 2, True, False),
     "noise_std": ("float", 0.0, True, False),
+    "wall_features": ("float", 0.0, True, False),
     "noise_gamma": ("float", 0.0, True, False),
     "seed": ("int", 0, True, False),
     "split_seed": ("int", 0, True, False),

@@ -25,6 +25,7 @@ import re
 from typing import Any
 
 from thrombojax.errors import ConfigError
+from thrombojax.graph.frame import FRAMES
 from thrombojax.train.checks import check_train_values
 
 __all__ = ["TrainConfig", "RunConfig", "parse_angle", "load_config_file"]
@@ -64,6 +65,13 @@ class TrainConfig:
             (push-forward training; 0: off).
         curriculum_epochs: grow k linearly from 1 to ``rollout_steps`` over this many epochs
             (0: k from the start). Validation always uses the final k.
+        frame: the frame the learned step works in: ``"global"`` (the dataset's axes) or
+            ``"vessel"`` (the rigid vessel's principal axes,
+            :func:`thrombojax.graph.frame.vessel_frame`: exactly invariant to the vessel's
+            orientation).
+        wall_features: cutoff, in vessel radii, of the per-node distance and direction to the
+            nearest vessel node appended to the clot nodes' inputs (0: off;
+            :func:`thrombojax.graph.wall_nodes.wall_node_features`).
         tiny: start from the model's tiny config (tests, smoke runs).
         model_config: overrides of the model config fields (architecture, graph radius).
         checkpoint_every: also save the last checkpoint every this many steps (0: each epoch).
@@ -93,6 +101,8 @@ class TrainConfig:
     rollout_steps: int = 1
     pushforward_steps: int = 0
     curriculum_epochs: float = 0.0
+    frame: str = "global"
+    wall_features: float = 0.0
     tiny: bool = False
     model_config: dict = dataclasses.field(default_factory=dict)
     checkpoint_every: int = 0
@@ -118,6 +128,8 @@ class TrainConfig:
             raise ConfigError(f"rollout_steps must be >= 1, got {self.rollout_steps}")
         if self.skip_frames < 0:
             raise ConfigError(f"skip_frames must be >= 0, got {self.skip_frames}")
+        if self.frame not in FRAMES:
+            raise ConfigError(f"frame must be one of {list(FRAMES)}, got {self.frame!r}")
 
     def replace(self, **changes: Any) -> TrainConfig:
         """A copy with some fields changed; unknown fields raise :class:`ConfigError`."""

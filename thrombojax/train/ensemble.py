@@ -27,6 +27,7 @@ from thrombojax.errors import ConfigError
 from thrombojax.io.outputs import atomic_write_text
 from thrombojax.models.registry import Surrogate
 from thrombojax.simulator.ensemble import stack_params
+from thrombojax.simulator.step import LearnedStep
 from thrombojax.train.config import RunConfig
 from thrombojax.train.loop import train
 from thrombojax.train.state import TrainedModel, latest_step, load_trained
@@ -65,6 +66,11 @@ class TrainedEnsemble:
     def n_members(self) -> int:
         """M."""
         return len(self.members)
+
+    @property
+    def step(self) -> LearnedStep:
+        """The learned step every member was trained as (the surrogate in the run's frame)."""
+        return self.members[0].step
 
     @property
     def seeds(self) -> list[int]:

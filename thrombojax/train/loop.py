@@ -175,7 +175,8 @@ def train(
     train_store = load_store(ds, split.train, scaling, skip=cfg.skip_frames, length=length)
     val_store = (load_store(ds, split.val, scaling, skip=cfg.skip_frames, length=length)
                  if split.val else None)
-    stats = compute_target_stats(train_store, isotropic=cfg.max_rotation > 0)
+    stats = compute_target_stats(train_store, isotropic=cfg.max_rotation > 0
+                                 and cfg.frame == "global", frame=cfg.frame)
 
     model_cfg = get_config(model_name, tiny=cfg.tiny, **cfg.model_config)
     model = create_model(model_name, model_cfg)
@@ -197,13 +198,17 @@ def train(
     batch_of = functools.partial(make_batch, train_store, budget=budget,
                                  nodes_per_sample=cfg.nodes_per_sample, seed=cfg.seed)
     run_key, init_key = jax.random.split(jax.random.PRNGKey(cfg.seed))
-    step_fn = make_step(model)
+    # radii -> scaled; the radius (possibly a geometric estimate) only when it is needed
+    radius = (vessel_radius(ds) / float(scaling.scale)
+              if cfg.noise_std > 0 or cfg.wall_features > 0 else 0.0)
+    wall_cutoff = cfg.wall_features * radius
+    step_fn = make_step(model, cfg.frame, wall_cutoff)
     state = init_state(step_fn, tx, init_key, batch_of(plan_of(epoch=0)[0]))
     run_config = {
         **RunConfig(model=model_name, dataset=str(pathlib.Path(dataset_path).resolve()),
                     train=cfg).to_dict(),
         "stats": stats.to_dict(), "scaling": scaling.to_dict(), "budget": budget,
-        "dataset_fingerprint": fingerprint,
+        "dataset_fingerprint": fingerprint, "wall_cutoff": wall_cutoff,
         "units": str(ds.attrs.get("units", "")),
         "steps_per_epoch": steps_per_epoch, "total_steps": total_steps, "devices": mesh.size,
         "split": split.to_dict(),
@@ -223,9 +228,7 @@ def train(
         radius=cfg.bary_radius or model_cfg.radius, max_neighbors=cfg.bary_max_neighbors,
     )
     augment = jax.jit(functools.partial(augment_batch, config=aug_cfg))
-    # radii -> scaled; the radius (possibly a geometric estimate) only when noise is on
-    noise_std = (cfg.noise_std * vessel_radius(ds) / float(scaling.scale)
-                 if cfg.noise_std > 0 else 0.0)
+    noise_std = cfg.noise_std * radius
     train_steps: dict[int, Callable] = {}
 
     def train_step_at(epoch: int) -> Callable:

@@ -5,7 +5,8 @@ Two numbers per window, both averaged over the clot nodes, the predicted steps a
 * ``loss``: the training objective, the MSE of the model output against the *normalised*
   acceleration ``TargetStats.normalize(s_{t+1} - 2 s_t + s_{t-1})``: every axis has unit
   variance, so the loss scale does not depend on the dataset's time step (MeshGraphNets /
-  learning-to-simulate convention).
+  learning-to-simulate convention), in the learned step's frame
+  (:meth:`thrombojax.simulator.step.LearnedStep.normalized_target`).
 * ``mse``: the study's metric, the MSE of the integrated prediction of s_{t+1} against the true
   s_{t+1} in scaled [-1, 1] coordinates. For one step it equals the loss weighted by ``std**2``
   per axis, so both have the same minimiser; ``mse`` is what the study's table reports and what
@@ -87,7 +88,8 @@ def window_loss_terms(
                                     train=train, rng=rng)
     states = jnp.concatenate([frames[:2], positions[:-1]])  # s_{t-1+j}, j = 0 .. k
     truth = frames[2:2 + k]
-    target = stats.normalize(target_acceleration(states[:-1], states[1:], truth))
+    target = step.normalized_target(stats, target_acceleration(states[:-1], states[1:], truth),
+                                    frames[1], node_type, mask)
     clot = clot_mask(node_type, mask)[None, :, None]
     loss_sq = jnp.where(clot, (outputs - target) ** 2, 0.0).mean(axis=(0, 2))
     mse_sq = jnp.where(clot, (positions - truth) ** 2, 0.0).mean(axis=(0, 2))

@@ -34,7 +34,7 @@ from thrombojax.data.splits import Split
 from thrombojax.errors import ConfigError
 from thrombojax.io.outputs import atomic_write_text
 from thrombojax.models.registry import Surrogate, config_from_dict, create_model
-from thrombojax.simulator.step import make_step
+from thrombojax.simulator.step import LearnedStep, make_step
 from thrombojax.train.config import RunConfig
 from thrombojax.types import NodeType, TargetStats
 
@@ -86,6 +86,12 @@ class TrainedModel:
     run: RunConfig
     split: Split
     config: dict
+
+    @property
+    def step(self) -> LearnedStep:
+        """The learned step this model was trained as (its surrogate in the run's frame)."""
+        return make_step(self.model, self.run.train.frame,
+                         float(self.config.get("wall_cutoff", 0.0)))
 
 
 def _manager(directory: pathlib.Path, *, read_only: bool = False) -> ocp.CheckpointManager:
@@ -257,7 +263,7 @@ def _check_params_fit(trained: TrainedModel, config_path: pathlib.Path, ckpt: pa
     n = 8
     pos = jnp.zeros((n, 3), jnp.float32) + jnp.linspace(0, 0.1, n)[:, None]
     node_type = jnp.full(n, NodeType.CLOT, jnp.int32)
-    init = make_step(trained.model).init
+    init = trained.step.init
     try:
         want = jax.eval_shape(lambda: init(jax.random.key(0), pos, pos, node_type,
                                            jnp.ones(n, bool)))

@@ -1,0 +1,167 @@
+"""Inputs that generalise: the vessel frame (rotation invariance) and the wall features."""
+
+import json
+
+import jax
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from thrombojax.errors import ConfigError
+from thrombojax.graph.frame import vessel_frame
+from thrombojax.graph.wall_nodes import nearest_vessel_node, wall_node_features
+from thrombojax.io.hdf5 import open_dataset
+from thrombojax.models.registry import create_model, get_config, identity_stats
+from thrombojax.simulator.step import make_step, target_acceleration
+from thrombojax.types import NodeType, TargetStats
+
+ROT = Rotation.from_euler("xyz", [0.4, 2.1, -1.3]).as_matrix().astype(np.float32)
+SHIFT = np.array([0.3, -0.2, 0.1], np.float32)
+
+
+@pytest.fixture(scope="module")
+def frames(tmp_path_factory):
+    """Three frames of a tiny-preset BendVessel simulation, scaled to about [-1, 1]."""
+    from thrombojax.sim.generate import generate_dataset
+
+    path = tmp_path_factory.mktemp("bend") / "bend.h5"
+    generate_dataset("bendvessel-tiny", path, n_sims=1, seed=3, progress=False)
+    ds = open_dataset(path)
+    name = ds.names[0]
+    pos = np.asarray(ds.positions(name), np.float32)
+    scale = np.abs(pos).max()
+    return pos[4:7] / scale, np.asarray(ds.node_type(name))
+
+
+def _moved(x):
+    return x @ ROT.T + SHIFT
+
+
+def test_vessel_frame_moves_with_the_vessel(frames):
+    pos, nt = frames
+    f, g = vessel_frame(pos[0], nt), vessel_frame(_moved(pos[0]), nt)
+    axes = np.asarray(f.axes)
+    assert np.allclose(axes.T @ axes, np.eye(3), atol=1e-5)
+    assert np.linalg.det(axes) == pytest.approx(1.0, abs=1e-5)
+    np.testing.assert_allclose(np.asarray(g.points(_moved(pos[1]))),
+                               np.asarray(f.points(pos[1])), atol=2e-5)
+    vec = pos[1] - pos[0]
+    np.testing.assert_allclose(np.asarray(f.vectors_to_global(f.vectors(vec))), vec, atol=1e-6)
+
+
+def test_frame_without_vessel_nodes_is_the_identity():
+    x = np.random.default_rng(0).normal(size=(5, 3)).astype(np.float32)
+    f = vessel_frame(x, np.full(5, NodeType.CLOT))
+    np.testing.assert_allclose(np.asarray(f.axes), np.eye(3))
+
+
+@pytest.mark.parametrize("frame, invariant", [("vessel", True), ("global", False)])
+def test_a_vessel_frame_step_is_invariant_to_rotation(frames, frame, invariant):
+    """Rotating and shifting the inputs rotates and shifts the vessel-frame step's output
+    (an orientation never seen before gives the same answer); the global step is not."""
+    pos, nt = frames
+    mask = np.ones(len(nt), bool)
+    step = make_step(create_model("mgn", get_config("mgn", tiny=True)), frame)
+    params = step.init(jax.random.key(0), pos[0], pos[1], nt, mask)
+    stats = TargetStats(mean=np.full(3, 1e-3, np.float32), std=np.full(3, 0.01, np.float32),
+                        velocity_std=np.float32(0.01))
+    a = np.asarray(step(params, stats, pos[0], pos[1], nt, mask).positions)
+    b = np.asarray(step(params, stats, _moved(pos[0]), _moved(pos[1]), nt, mask).positions)
+    moved = float(np.abs(_moved(a) - _moved(pos[1])).max())  # size of one step
+    err = float(np.abs(_moved(a) - b).max())
+    assert (err < 1e-3 * max(moved, 1e-3)) == invariant, (err, moved)
+
+
+def test_normalized_target_is_what_the_step_integrates(frames):
+    """An output equal to the normalised target lands exactly on the true next frame."""
+    pos, nt = frames
+    mask = np.ones(len(nt), bool)
+    step = make_step(create_model("constant_velocity"), "vessel")
+    stats = TargetStats(mean=np.array([1e-3, 0, -1e-3], np.float32),
+                        std=np.array([0.02, 0.01, 0.03], np.float32),
+                        velocity_std=np.float32(0.01))
+    target = step.normalized_target(stats, target_acceleration(pos[0], pos[1], pos[2]), pos[1],
+                                    nt, mask)
+    frame = step.frame_of(pos[1], nt, mask)
+    accel = np.asarray(frame.vectors_to_global(stats.denormalize(target)))
+    clot = nt == NodeType.CLOT
+    np.testing.assert_allclose((2 * pos[1] - pos[0] + accel)[clot], pos[2][clot], atol=1e-5)
+
+
+def test_wall_node_features_measure_the_nearest_vessel_node():
+    vessel = np.array([[0, 0, 0], [2, 0, 0], [0, 3, 0]], np.float32)
+    clot = np.array([[0.5, 0, 0], [1.6, 0, 0], [0, 5, 0]], np.float32)
+    x = np.concatenate([vessel, clot, [[9, 9, 9]]])
+    nt = np.array([0, 0, 0, 1, 1, 1, 1], np.int32)
+    mask = np.array([True] * 6 + [False])
+    f = np.asarray(wall_node_features(x, nt, mask, cutoff=1.0))
+    np.testing.assert_allclose(f[3], [0.5, -1, 0, 0], atol=1e-6)
+    np.testing.assert_allclose(f[4], [0.4, 1, 0, 0], atol=1e-6)
+    np.testing.assert_allclose(f[5], [1.0, 0, 0, 0], atol=1e-6)  # beyond the cutoff
+    assert not f[:3].any() and not f[6].any()  # vessel and padded nodes get zeros
+    with pytest.raises(ValueError, match="cutoff"):
+        wall_node_features(x, nt, mask, cutoff=0.0)
+
+
+def test_nearest_vessel_node_blocks_agree_with_one_pass():
+    rng = np.random.default_rng(1)
+    x = rng.normal(size=(300, 3)).astype(np.float32)
+    nt = (rng.random(300) < 0.4).astype(np.int32)
+    mask = rng.random(300) < 0.9
+    one = np.asarray(nearest_vessel_node(x, nt, mask, block=1024))
+    blocks = np.asarray(nearest_vessel_node(x, nt, mask, block=64))
+    np.testing.assert_array_equal(one, blocks)
+    vessel = np.flatnonzero(mask & (nt == 0))
+    d = np.linalg.norm(x[:, None] - x[None, vessel], axis=-1)
+    np.testing.assert_array_equal(one, vessel[d.argmin(1)])
+
+
+def test_wall_features_reach_the_model(frames):
+    """With wall features the step's output depends on where the wall is, also for a clot
+    node with no vessel node among its graph neighbours; the parameters grow by the 4 inputs."""
+    pos, nt = frames
+    mask = np.ones(len(nt), bool)
+    model = create_model("mgn", get_config("mgn", tiny=True, max_neighbors=4))
+    plain, walled = make_step(model), make_step(model, wall_cutoff=0.5)
+    p0 = plain.init(jax.random.key(0), pos[0], pos[1], nt, mask)
+    p1 = walled.init(jax.random.key(0), pos[0], pos[1], nt, mask)
+    k0 = p0["params"]["node_encoder"]["dense_0"]["kernel"]
+    k1 = p1["params"]["node_encoder"]["dense_0"]["kernel"]
+    assert k1.shape[0] == k0.shape[0] + 4
+    stats = identity_stats()
+    inputs = walled.inputs(stats, pos[0], pos[1], nt, mask)
+    clot = nt == NodeType.CLOT
+    assert np.asarray(inputs.extra)[clot, 0].min() < 1.0  # some clot nodes feel the wall
+    assert plain.inputs(stats, pos[0], pos[1], nt, mask).extra is None
+    with pytest.raises(ConfigError, match="wall_cutoff"):
+        make_step(model, wall_cutoff=-1.0)
+    with pytest.raises(ConfigError, match="frame"):
+        make_step(model, "sideways")
+
+
+def test_a_run_trains_and_reloads_in_the_vessel_frame_with_wall_features(tmp_path):
+    """The run records the frame and the wall cutoff; the loaded model steps as it trained;
+    single-step evaluation and a rollout run through that step."""
+    from dataset_factory import accelerating_sims
+
+    from thrombojax.eval.report import rollout_run
+    from thrombojax.io.hdf5 import write_dataset
+    from thrombojax.train.loop import train
+    from thrombojax.train.state import load_trained
+
+    data = write_dataset(tmp_path / "acc.h5", accelerating_sims(n_sims=4, n_nodes=80,
+                                                                 n_frames=8),
+                         name="acc", source="test")
+    trained = train(data, "mgn", tmp_path / "run", progress=False, epochs=1, tiny=True,
+                    batch_size=2, n_val=1, n_test=1, max_rotation=0.0, frame="vessel",
+                    warmup_epochs=0.5,
+                    wall_features=2.0)
+    loaded = load_trained(tmp_path / "run")
+    assert loaded.step.frame == "vessel" and loaded.step == trained.step
+    assert loaded.step.wall_cutoff == pytest.approx(loaded.config["wall_cutoff"])
+    assert loaded.step.wall_cutoff > 0
+    report = rollout_run(tmp_path / "run", data, tmp_path / "rollout", progress=False,
+                         gif=False)
+    sims = report["simulations"]
+    assert sims and all("NaN" not in json.dumps(r["summary"]) for r in sims.values())
+    assert all(r["n_steps"] > 0 for r in sims.values())
