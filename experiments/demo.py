@@ -35,6 +35,7 @@ from thrombojax.io.outputs import fresh_owned_folder
 from thrombojax.sim.generate import generate_dataset
 from thrombojax.sim.presets import get_preset
 from thrombojax.train.loop import train
+from thrombojax.train.recipes import DEFAULT_RECIPE, recipe
 
 __all__ = ["DemoConfig", "run_demo", "main"]
 
@@ -51,6 +52,8 @@ class DemoConfig:
         model_config: MeshGraphNet overrides (small, fast on CPU).
         batch_size: training batch size. bench_steps: rollout steps timed per model (the
             rest of the 35 is extrapolated per step). tiny_models: bench the tiny configs.
+        recipe: the training recipe (``thrombojax/train/recipes.py``; the default of
+            ``thrombojax train``, the stability ladder's best rung).
         max_rotation: largest random rotation (radians) of training samples. 0 here: the
             BendVessel simulations are already rotated 0-190 degrees about one axis, and with
             the study's random 3-D rotations up to pi a small MeshGraphNet does not get below
@@ -68,6 +71,7 @@ class DemoConfig:
     batch_size: int = 4
     bench_steps: int = 5
     tiny_models: bool = False
+    recipe: str = DEFAULT_RECIPE
     max_rotation: float = 0.0
 
     @classmethod
@@ -107,9 +111,9 @@ def run_demo(out: str | pathlib.Path, config: DemoConfig = DemoConfig(), *,
     print(f"   {time.perf_counter() - t:.0f} s")
 
     t = _stage(f"2/6 train a small MeshGraphNet (~{config.train_minutes:g} min)")
-    common = dict(tiny=config.tiny_models, model_config=dict(config.model_config),
-                  batch_size=config.batch_size, n_val=1, n_test=1,
-                  max_rotation=config.max_rotation)
+    common = {**recipe(config.recipe), "tiny": config.tiny_models,
+              "model_config": dict(config.model_config), "batch_size": config.batch_size,
+              "n_val": 1, "n_test": 1, "max_rotation": config.max_rotation}
     epochs = _calibrate_epochs(data, out / "calibration", config, common, progress)
     print(f"   calibrated: {epochs} epochs fit the budget")
     run = out / "run_mgn"

@@ -139,29 +139,41 @@ def test_wall_features_reach_the_model(frames):
         make_step(model, "sideways")
 
 
-def test_a_run_trains_and_reloads_in_the_vessel_frame_with_wall_features(tmp_path):
-    """The run records the frame and the wall cutoff; the loaded model steps as it trained;
-    single-step evaluation and a rollout run through that step."""
+def test_recipes():
+    from thrombojax.train.config import TrainConfig
+    from thrombojax.train.recipes import DEFAULT_RECIPE, recipe
+
+    assert DEFAULT_RECIPE == "rollout" and recipe("study") == {}
+    cfg = TrainConfig(**recipe("rollout"))
+    assert cfg.frame == "vessel" and cfg.rollout_steps > 1 and cfg.noise_std > 0
+    with pytest.raises(ConfigError, match="unknown recipe"):
+        recipe("fast")
+
+
+def test_cli_trains_with_the_rollout_recipe_and_reloads_the_step(tmp_path):
+    """`thrombojax train` without --config uses the rollout recipe; the run records the frame
+    and the wall cutoff; the loaded model steps as it trained; a rollout runs through it."""
     from dataset_factory import accelerating_sims
 
+    from thrombojax.cli import main
     from thrombojax.eval.report import rollout_run
     from thrombojax.io.hdf5 import write_dataset
-    from thrombojax.train.loop import train
     from thrombojax.train.state import load_trained
 
     data = write_dataset(tmp_path / "acc.h5", accelerating_sims(n_sims=4, n_nodes=80,
                                                                  n_frames=8),
                          name="acc", source="test")
-    trained = train(data, "mgn", tmp_path / "run", progress=False, epochs=1, tiny=True,
-                    batch_size=2, n_val=1, n_test=1, max_rotation=0.0, frame="vessel",
-                    warmup_epochs=0.5,
-                    wall_features=2.0)
-    loaded = load_trained(tmp_path / "run")
-    assert loaded.step.frame == "vessel" and loaded.step == trained.step
+    run = tmp_path / "run"
+    assert main(["train", "--dataset", str(data), "--model", "mgn", "--out", str(run),
+                 "--tiny", "--epochs", "1", "--batch-size", "2", "--n-val", "1", "--n-test",
+                 "1", "--warmup-epochs", "0.5", "--wall-features", "2", "--quiet"]) == 0
+    loaded = load_trained(run)
+    cfg = loaded.run.train
+    assert (cfg.frame, cfg.rollout_steps, cfg.pushforward_steps) == ("vessel", 3, 1)
+    assert loaded.step.frame == "vessel"
     assert loaded.step.wall_cutoff == pytest.approx(loaded.config["wall_cutoff"])
     assert loaded.step.wall_cutoff > 0
-    report = rollout_run(tmp_path / "run", data, tmp_path / "rollout", progress=False,
-                         gif=False)
+    report = rollout_run(run, data, tmp_path / "rollout", progress=False, gif=False)
     sims = report["simulations"]
     assert sims and all("NaN" not in json.dumps(r["summary"]) for r in sims.values())
     assert all(r["n_steps"] > 0 for r in sims.values())

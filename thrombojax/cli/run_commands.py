@@ -63,6 +63,12 @@ def _add_train(sub) -> None:
                    "differing only by seed into DIR/member_<i> (rollouts then report spread)")
     p.add_argument("--curriculum-epochs", type=NN_FLOAT, help="grow k from 1 to "
                    "--rollout-steps over this many epochs (default 0: k from the start)")
+    p.add_argument("--recipe", choices=("rollout", "study"), help="a named set of training "
+                   "options under the explicit ones: 'rollout' (the default without --config "
+                   "or --resume: noise 0.01 r, 1 push-forward step, a 3-step loss grown over 6 "
+                   "epochs, the vessel frame, no rotation augmentation; the stability ladder's "
+                   "best rung) or 'study' (the study's single-step recipe, TrainConfig's "
+                   "defaults)")
     p.add_argument("--frame", choices=("global", "vessel"), help="frame of the learned step: "
                    "'vessel' works in the rigid vessel's principal axes (exactly invariant to "
                    "the vessel's orientation); default 'global'")
@@ -87,6 +93,12 @@ def _run_train(args) -> int:
              "n_test", "tiny", "rollout_steps", "noise_gamma", "pushforward_steps",
              "curriculum_epochs", "frame", "wall_features")
     overrides = {k: getattr(args, k) for k in names if getattr(args, k) is not None}
+    from thrombojax.train.recipes import DEFAULT_RECIPE, recipe
+
+    implicit = None if (args.config or args.resume) else DEFAULT_RECIPE
+    chosen = args.recipe if args.recipe is not None else implicit
+    if chosen is not None:
+        overrides = {**recipe(chosen), **overrides}
     config = load_config_file(args.config) if args.config else None
     if args.radius is not None:
         base = config.train if isinstance(config, RunConfig) else (config or TrainConfig())

@@ -232,7 +232,9 @@ def compute_target_stats(
 
     * ``frame="vessel"``: the statistics of the acceleration expressed in each simulation's
       vessel frame (:func:`thrombojax.graph.frame.vessel_frame`), what a learned step in that
-      frame predicts; combine with ``isotropic=False`` (the frame makes rotations irrelevant).
+      frame predicts. Training combines it with ``isotropic=True``: in that frame the clot of
+      a planar vessel barely moves along the plane's normal, and per-axis statistics would
+      weight the loss by the inverse square of that tiny spread.
 
     ``velocity_std`` is the isotropic RMS ``sqrt(E|v|^2 / 3)`` of ``v_t = s_t - s_{t-1}`` over
     the same clot nodes (one number for all axes, so it is rotation-invariant).

@@ -175,8 +175,10 @@ def train(
     train_store = load_store(ds, split.train, scaling, skip=cfg.skip_frames, length=length)
     val_store = (load_store(ds, split.val, scaling, skip=cfg.skip_frames, length=length)
                  if split.val else None)
-    stats = compute_target_stats(train_store, isotropic=cfg.max_rotation > 0
-                                 and cfg.frame == "global", frame=cfg.frame)
+    # isotropic with rotations, and in the vessel frame: per-axis statistics there weight the
+    # loss by 1 / std^2 of an axis along which the clot barely moves (ill-conditioned)
+    stats = compute_target_stats(train_store, frame=cfg.frame,
+                                 isotropic=cfg.max_rotation > 0 or cfg.frame == "vessel")
 
     model_cfg = get_config(model_name, tiny=cfg.tiny, **cfg.model_config)
     model = create_model(model_name, model_cfg)
