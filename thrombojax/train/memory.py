@@ -88,12 +88,16 @@ def estimate_train_memory(
             "batches": int(n_batches * one_batch), "triangle search": int(triangles)}
 
 
-def _gb(n: float) -> str:
-    return f"{n / 1e9:.3g} GB"
+def _size(n: float) -> str:
+    """``9.6e9`` -> ``'9.6 GB'``; ``126`` -> ``'126 B'``."""
+    for unit, name in ((1e12, "TB"), (1e9, "GB"), (1e6, "MB"), (1e3, "kB")):
+        if n >= unit:
+            return f"{n / unit:.3g} {name}"
+    return f"{n:.0f} B"
 
 
 def check_train_memory(
-    estimate: dict[str, int], *, values: dict[str, object], where: str = "train",
+    estimate: dict[str, int], *, values: dict[str, object], where: str = "",
     available: int | None = None,
 ) -> None:
     """Refuse a configuration whose estimate exceeds the machine's memory.
@@ -101,7 +105,7 @@ def check_train_memory(
     Args:
         estimate: :func:`estimate_train_memory`.
         values: the option values to quote (e.g. ``{"bary_ratio": 1e9}``).
-        where: what the message starts with (the dataset file, or ``train``).
+        where: what the message starts with (the dataset file; empty: nothing).
         available: bytes available (default :func:`available_memory`; ``None``: no check).
     Raises:
         ConfigError: one line naming the option of the largest component, its value, the
@@ -114,6 +118,8 @@ def check_train_memory(
     worst = max(estimate, key=estimate.get)
     quoted = ", ".join(f"{k} {v:g}" if isinstance(v, float) else f"{k} {v}"
                        for k, v in values.items())
-    parts = ", ".join(f"{k} {_gb(v)}" for k, v in estimate.items() if v)
-    raise ConfigError(f"{where}: {_OPTION[worst]} asks for more memory than this machine has: "
-                      f"{quoted} need about {_gb(total)} ({parts}), available {_gb(available)}")
+    parts = ", ".join(f"{k} {_size(v)}" for k, v in estimate.items() if v)
+    prefix = f"{where}: " if where else ""
+    raise ConfigError(f"{prefix}{_OPTION[worst]} asks for more memory than this machine has: "
+                      f"about {_size(total)} ({parts}) for {quoted}; available "
+                      f"{_size(available)}")
