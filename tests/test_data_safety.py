@@ -149,9 +149,12 @@ def test_stale_temporaries_of_dead_processes_are_removed(tmp_path):
     stale.write_bytes(b"junk")
     mine = tmp_path / f".e.h5.tjxtmp-{os.getpid()}-0123abcd.tmp"  # a live writer's
     mine.write_bytes(b"in use")
+    # a killed GIF write: a temporary of a temporary, plus PillowWriter's ".gif"
+    nested = tmp_path / (f"..r.gif.tjxtmp-{pid}-be718baa.gif.tjxtmp-{pid}-ce2f7cc7.gif.gif")
+    nested.write_bytes(b"half a gif")
     other = tmp_path / ".hidden.tmp"  # not ours
     other.write_bytes(b"keep")
-    assert clean_temporaries(tmp_path) == [stale]
+    assert sorted(clean_temporaries(tmp_path)) == sorted([stale, nested])
     assert mine.exists() and other.exists()
 
 

@@ -46,7 +46,9 @@ __all__ = [
 ]
 
 TEMP_TAG = ".tjxtmp-"
-_TEMP_RE = re.compile(r"^\..*\.tjxtmp-(\d+)-[0-9a-f]{8}(\.[^.]*)?$")
+# any tail after the tag: writers that derive a name from a temporary (a temporary of a
+# temporary, PillowWriter's added ".gif") leave temporaries too (issue 14 kill -9 trials)
+_TEMP_RE = re.compile(r"^\..*\.tjxtmp-(\d+)-[0-9a-f]{8}(\..*)?$")
 _RESERVED = {"CON", "PRN", "AUX", "NUL", "CONIN$", "CONOUT$"} | {
     f"{p}{i}" for p in ("COM", "LPT") for i in "0123456789¹²³"
 }

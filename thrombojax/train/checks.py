@@ -12,11 +12,9 @@ import math
 from typing import Any
 
 from thrombojax.errors import ConfigError
+from thrombojax.train.memory import check_train_memory, estimate_train_memory
 
-__all__ = ["check_train_values", "MAX_BARY_RATIO"]
-
-# BaryCentricSampling draws bary_ratio generated samples per real one; the study used 2.
-MAX_BARY_RATIO = 64.0
+__all__ = ["check_train_values"]
 
 # field -> (kind, lower bound, bound inclusive, may be None)
 _RULES: dict[str, tuple[str, float, bool, bool]] = {
@@ -73,16 +71,17 @@ def _check_one(name: str, value: Any) -> None:
 def check_train_values(cfg: Any) -> None:
     """Check every field of a TrainConfig; raises :class:`ConfigError` naming the option.
 
-    Also: ``bary_ratio`` at most :data:`MAX_BARY_RATIO` (each real sample would bring that many
-    generated ones into memory per step), ``tiny`` a boolean, ``model_config`` an object.
+    Also: the memory ``bary_ratio`` asks for even on one window
+    (:func:`thrombojax.train.memory.check_train_memory`; the training loop checks again with the
+    dataset's sizes), ``tiny`` a boolean, ``model_config`` an object.
     """
     for name in _RULES:
         if hasattr(cfg, name):
             _check_one(name, getattr(cfg, name))
-    if cfg.bary_ratio > MAX_BARY_RATIO:
-        raise ConfigError(f"--bary-ratio (bary_ratio) {cfg.bary_ratio:g} asks for that many "
-                          f"generated samples per real one; at most {MAX_BARY_RATIO:g} "
-                          "(the study used 2)")
+    check_train_memory(estimate_train_memory(  # one window of one node: a lower bound
+        n_windows=1, n_val_windows=0, bary_ratio=cfg.bary_ratio, batch_size=cfg.batch_size or 1,
+        budget=1, length=3, max_neighbors=cfg.bary_max_neighbors,
+    ), values={"bary_ratio": float(cfg.bary_ratio), "bary_max_neighbors": cfg.bary_max_neighbors})
     if not isinstance(cfg.tiny, bool):
         raise ConfigError(f"--tiny (tiny) must be true or false, got {cfg.tiny!r}")
     if not isinstance(cfg.model_config, dict):

@@ -52,6 +52,7 @@ from thrombojax.train.guards import (
     dataset_fingerprint,
     warn_schedule,
 )
+from thrombojax.train.memory import check_train_memory, estimate_train_memory
 from thrombojax.train.plots import plot_losses
 from thrombojax.train.schedule import make_optimizer, make_schedule
 from thrombojax.train.state import (
@@ -74,6 +75,7 @@ from thrombojax.train.step import (
 
 __all__ = ["train", "TrainingDivergedError", "plot_losses", "rollout_steps_at"]
 
+_MEMORY_OPTIONS = ("bary_ratio", "batch_size", "nodes_per_sample", "bary_max_neighbors")
 _EVAL_EPOCH = 2**31 - 1  # seed stream of the validation subsets, never a training epoch
 
 
@@ -191,6 +193,11 @@ def train(
         raise ConfigError(f"batch size {batch_size} is not a multiple of the {mesh.size} devices")
     max_nodes = max(train_store.max_nodes, val_store.max_nodes if val_store else 0)
     budget = padding_budget(max_nodes, cfg.nodes_per_sample)
+    check_train_memory(estimate_train_memory(
+        n_windows=len(train_store), n_val_windows=len(val_store) if val_store else 0,
+        bary_ratio=cfg.bary_ratio, batch_size=batch_size, budget=budget, length=length,
+        max_neighbors=cfg.bary_max_neighbors,
+    ), values={k: getattr(cfg, k) for k in _MEMORY_OPTIONS}, where=str(dataset_path))
     plan_of = functools.partial(epoch_plan, len(train_store), bary_ratio=cfg.bary_ratio,
                                 batch_size=batch_size, seed=cfg.seed)
     steps_per_epoch = plan_of(epoch=0).shape[0]
