@@ -89,6 +89,8 @@ def plan_runs(experiment: Experiment, scale_name: str, seeds: tuple[int, ...] | 
             runs.append(Run(_key(model), scale.datasets[0] if scale.datasets else "", model, 0,
                             None, "", scale.train))
         return runs
+    prefix = experiment.sweep or {"generalisation": "train_deg", "ladder": "rung"}.get(
+        experiment.kind, "v")
     values = scale.values if experiment.kind in ("sweep", "generalisation", "ladder") else (None,)
     for dataset in scale.datasets:
         for model in scale.models:
@@ -106,8 +108,8 @@ def plan_runs(experiment: Experiment, scale_name: str, seeds: tuple[int, ...] | 
                         cfg = scale.train.replace(**changes)
                     except (ConfigError, TypeError) as err:
                         raise ConfigError(f"{where}: value {label!r}: {err}") from err
-                    key = _key(dataset, model, f"{experiment.sweep or 'v'}={label}"
-                               if label else "", f"s{seed}")
+                    key = _key(dataset, model, f"{prefix}={label}" if label else "",
+                               f"s{seed}")
                     runs.append(Run(key, dataset, model, seed, value, label, cfg))
     keys = [r.key for r in runs]
     if len(set(keys)) != len(keys):

@@ -21,7 +21,7 @@ from thrombojax.experiments.execute import execute_run, read_result, run_folder
 from thrombojax.experiments.plan import plan_runs, shard
 from thrombojax.experiments.report import write_report
 from thrombojax.experiments.spec import Experiment
-from thrombojax.io.outputs import atomic_write_text
+from thrombojax.io.outputs import TEMP_TAG, atomic_write_text
 
 __all__ = ["prepare_folder", "run_experiment"]
 
@@ -30,7 +30,10 @@ _MANIFEST = "experiment.json"
 
 def prepare_folder(out: pathlib.Path, experiment: Experiment, scale: str, *,
                    force: bool) -> None:
-    """Create ``out`` or check that it holds this experiment at this scale (a resume)."""
+    """Create ``out`` or check that it holds this experiment at this scale (a resume).
+
+    Workers starting together may see each other's temporary manifest: temporaries do not
+    count as someone else's files."""
     manifest = out / _MANIFEST
     if manifest.is_file():
         saved = json.loads(manifest.read_text())
@@ -38,7 +41,7 @@ def prepare_folder(out: pathlib.Path, experiment: Experiment, scale: str, *,
                 and not force:
             raise OutputError(f"{out}: holds experiment '{saved.get('experiment')}' at scale "
                               f"'{saved.get('scale')}'; choose another --out, or --force")
-    elif out.exists() and any(out.iterdir()) and not force:
+    elif out.exists() and any(TEMP_TAG not in p.name for p in out.iterdir()) and not force:
         raise OutputError(f"{out}: exists and holds no thrombojax experiment; choose a new or "
                           "empty --out, or --force")
     out.mkdir(parents=True, exist_ok=True)

@@ -132,7 +132,10 @@ def run_search(experiment: Experiment, scale: str, out: str | pathlib.Path, *,
                           given=datasets, progress=progress)
     url = storage or f"sqlite:///{(out / 'search.db').resolve()}"
     name = f"{experiment.name}-{scale}"
-    store = _storage(url)
+    try:
+        store = _storage(url)
+    except Exception as err:  # noqa: BLE001 - SQLAlchemy's errors for a bad URL vary
+        raise ConfigError(f"--storage {url}: cannot open the Optuna storage: {err}") from err
     optuna.logging.set_verbosity(optuna.logging.WARNING)
     if force and name in optuna.get_all_study_names(store):
         optuna.delete_study(study_name=name, storage=store)
