@@ -118,6 +118,14 @@ def test_cli_list_and_bad_input(capsys, tmp_path):
     err = capsys.readouterr().err
     assert "bad.toml" in err and "[study].train" in err and "epochs" in err
     assert config_dir().name == "configs"
+    assert main(["experiment", "run", "rotation_sweep", "--scale", "study", "--out",
+                 str(tmp_path / "z"), "--dry-run", "--worker", "1/4"]) == 0
+    out = capsys.readouterr().out
+    assert "9 of 36 runs" in out and "clotentry__mgn__max_rotation-0__s1" in out
+    assert not (tmp_path / "z").exists()
+    assert main(["experiment", "run", "test_mse", "--scale", "smoke", "--out",
+                 str(tmp_path / "z"), "--trials", "3"]) == 2
+    assert "--trials: only for a search" in capsys.readouterr().err
 
 
 def test_experiment_resumes_without_redoing_finished_runs(data_dir, tmp_path, monkeypatch):

@@ -64,25 +64,35 @@ def test_timing(tmp_path, data_dir):
         assert bench["bench"][0]["solver_s"] > 0  # our solver's time from the dataset
 
 
-def test_search_resumes_and_exports_a_train_config(tmp_path, data_dir):
+def test_search_resumes_after_a_kill_and_exports_a_train_config(tmp_path, data_dir,
+                                                                monkeypatch):
     pytest.importorskip("optuna")
+    from thrombojax.experiments import search
+
     out = tmp_path / "search"
     args = ["experiment", "run", "hyperparameter_search", "--scale", "smoke", "--out",
             str(out), "--data-dir", str(data_dir), "--quiet"]
-    assert main(args) == 0
+    real = search.train_run
+
+    def killed_in_trial_1(run, cfg, folder, *a, **kw):
+        if folder.name == "trial_0001":
+            raise KeyboardInterrupt  # the process is killed during the second trial
+        return real(run, cfg, folder, *a, **kw)
+
+    monkeypatch.setattr(search, "train_run", killed_in_trial_1)
+    assert main(args) == 130
+    first = out / "trials" / "trial_0000" / "metrics.jsonl"
+    stamp = first.stat().st_mtime_ns
+    monkeypatch.setattr(search, "train_run", real)
+    assert main(args) == 0  # resumes: trial 0 kept, one more trial finishes the search
+    assert first.stat().st_mtime_ns == stamp
+    assert sorted(p.name for p in (out / "trials").iterdir()) == ["trial_0000", "trial_0002"]
+    assert main(args) == 0  # finished: no new trial
+    assert len(list((out / "trials").iterdir())) == 2
     best = load_config_file(out / "best_config.json")
     assert isinstance(best, TrainConfig) and best.tiny
     assert (out / "search.db").is_file() and (out / "history.png").is_file()
-    table = (out / "table.md").read_text()
-    assert "study's choice" in table
-    trials = sorted((out / "trials").iterdir())
-    assert len(trials) == 2
-    stamps = [t.joinpath("metrics.jsonl").stat().st_mtime_ns for t in trials]
-    # resuming a finished search runs no new trial; asking for one more runs exactly one
-    assert main(args) == 0
-    assert [t.joinpath("metrics.jsonl").stat().st_mtime_ns for t in trials] == stamps
-    assert main([*args, "--trials", "3"]) == 0
-    assert len(list((out / "trials").iterdir())) == 3
+    assert "study's choice" in (out / "table.md").read_text()
     trained = main(["train", "--config", str(out / "best_config.json"), "--model", "mgn",
                     "--dataset", str(data_dir / "bendvessel-tiny.h5"), "--out",
                     str(tmp_path / "best_run"), "--epochs", "1", "--quiet"])

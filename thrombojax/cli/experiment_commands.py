@@ -45,6 +45,8 @@ def _add_experiment(sub) -> None:
                     "sqlite:///DIR/search.db; any RDB URL shares one study between hosts)")
     rp.add_argument("--trials", type=int, metavar="N", help="search only: total trials")
     rp.add_argument("--config-dir", metavar="DIR", help="folder of experiment files")
+    rp.add_argument("--dry-run", action="store_true", help="print this worker's runs and the "
+                    "cost estimate; run nothing")
     output_flags(rp, "redo every run (and refuse nothing in DIR); datasets are kept")
     rp.set_defaults(func=_run_run)
 
@@ -88,7 +90,22 @@ def _run_list(args) -> int:
     return 0
 
 
+def _dry_run(exp, args) -> int:
+    from thrombojax.experiments.plan import estimate, parse_worker, plan_runs, shard
+
+    runs = plan_runs(exp, args.scale, _seeds(args.seeds))
+    mine = shard(runs, parse_worker(args.worker))
+    for run in mine:
+        print(f"{run.key}: {run.model} on {run.dataset or '-'}, seed {run.seed}, "
+              f"{run.train.epochs} epochs")
+    est = estimate(exp, args.scale)
+    print(f"{len(mine)} of {len(runs)} runs; the whole scale: {est['steps']:,} training steps, "
+          f"~{_hours(est['seconds'])} ({est['how']})")
+    return 0
+
+
 def _run_run(args) -> int:
+    from thrombojax.errors import ConfigError
     from thrombojax.experiments.data import parse_dataset_overrides
     from thrombojax.experiments.plan import parse_worker
     from thrombojax.experiments.runner import run_experiment
@@ -96,6 +113,17 @@ def _run_run(args) -> int:
 
     exp = find_experiment(args.name, args.config_dir)
     exp = apply_sets(exp, args.scale, args.sets)
+    search_only = [f for f, v in (("--storage", args.storage), ("--trials", args.trials)) if v]
+    if exp.kind != "search" and search_only:
+        raise ConfigError(f"{', '.join(search_only)}: only for a search; '{exp.name}' is a "
+                          f"{exp.kind}")
+    if exp.kind == "search" and (args.worker or args.seeds):
+        raise ConfigError("--worker/--seeds do not apply to a search: start the same command "
+                          "on each host with one shared --storage")
+    if args.trials is not None and args.trials < 1:
+        raise ConfigError(f"--trials must be >= 1, got {args.trials}")
+    if args.dry_run:
+        return _dry_run(exp, args)
     if exp.kind == "search":
         from thrombojax.experiments.search import run_search
 

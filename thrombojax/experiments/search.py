@@ -66,9 +66,13 @@ def _pruning_callback(trial, folder: pathlib.Path):
     """Report each new epoch's validation MSE; raise TrialPruned when the pruner says so."""
     import optuna
 
-    log, seen = folder / "metrics.jsonl", {"epoch": 0}
+    log, seen = folder / "metrics.jsonl", {"epoch": 0, "size": -1}
 
     def callback(step: int, metrics: dict) -> None:
+        size = log.stat().st_size
+        if size == seen["size"]:  # no new epoch record since the last step
+            return
+        seen["size"] = size
         lines = [json.loads(ln) for ln in log.read_text().splitlines() if ln.strip()]
         for rec in lines:
             if rec.get("epoch", 0) > seen["epoch"] and "event" not in rec:
@@ -149,8 +153,9 @@ def run_search(experiment: Experiment, scale: str, out: str | pathlib.Path, *,
     def objective(trial) -> float:
         cfg = suggest(trial, space, run.train)
         folder = out / "trials" / f"trial_{trial.number:04d}"
-        if (folder / "config.json").is_file() and not (folder / "checkpoints").is_dir():
-            raise OutputError(f"{folder}: holds files of another search; use --force")
+        if (folder / "config.json").is_file() and not force:  # numbers are unique per study
+            raise OutputError(f"{folder}: holds a trial of an earlier study (another storage, "
+                              "or one deleted); use another --out, or --force")
         log(f"trial {trial.number}: {trial.params}")
         train_run(run, cfg, folder, data, force=True, progress=progress,
                   callback=_pruning_callback(trial, folder))
