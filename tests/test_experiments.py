@@ -203,3 +203,56 @@ def test_experiment_resumes_without_redoing_finished_runs(data_dir, tmp_path, mo
     with pytest.raises(OutputError, match="holds no thrombojax experiment"):
         run_experiment(exp, "smoke", foreign, data_dir=data_dir)
     assert (foreign / "notes.txt").read_text() == "keep"
+
+
+def test_tensorboard_events_follow_metrics_and_are_optional(tmp_path, monkeypatch):
+    import sys
+
+    from thrombojax.experiments.tensorboard import tensorboard_logger
+
+    log = tmp_path / "metrics.jsonl"
+    log.write_text("")
+    monkeypatch.setitem(sys.modules, "tensorboardX", None)  # not installed
+    callback, close = tensorboard_logger(tmp_path)
+    assert callback is None and not (tmp_path / "tensorboard").exists()
+    close()
+    monkeypatch.delitem(sys.modules, "tensorboardX")
+    pytest.importorskip("tensorboardX")
+    callback, close = tensorboard_logger(tmp_path)
+    callback(1, {"loss": 0.5, "mse": 0.25})
+    log.write_text(json.dumps({"epoch": 1, "step": 2, "train_loss": 0.4, "val_mse": 0.125})
+                   + "\n")
+    callback(2, {"loss": 0.3, "mse": 0.2})
+    close()
+    scalars = _read_events(tmp_path / "tensorboard")
+    assert [(s, pytest.approx(v)) for t, s, v in scalars if t == "step/loss"] == [(1, 0.5),
+                                                                                  (2, 0.3)]
+    assert [(s, v) for t, s, v in scalars if t == "epoch/val_mse"] == [(2, 0.125)]
+
+
+def _read_events(folder):
+    """(tag, step, value) of every scalar in the event files (TFRecord: length, crc, data, crc)."""
+    import struct
+
+    from tensorboardX.proto import event_pb2
+
+    out = []
+    for path in sorted(folder.glob("events.out.tfevents.*")):
+        raw = path.read_bytes()
+        i = 0
+        while i < len(raw):
+            (n,) = struct.unpack("<Q", raw[i:i + 8])
+            event = event_pb2.Event.FromString(raw[i + 12:i + 12 + n])
+            i += 12 + n + 4
+            out += [(v.tag, event.step, v.simple_value) for v in event.summary.value]
+    return out
+
+
+def test_search_without_optuna_is_one_clear_error(tmp_path, capsys, monkeypatch):
+    import sys
+
+    monkeypatch.setitem(sys.modules, "optuna", None)
+    assert main(["experiment", "run", "hyperparameter_search", "--scale", "smoke", "--out",
+                 str(tmp_path / "s")]) == 2
+    assert "needs Optuna" in capsys.readouterr().err
+    assert not (tmp_path / "s").exists()
