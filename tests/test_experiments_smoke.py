@@ -60,6 +60,8 @@ def test_timing(tmp_path, data_dir):
         row = next(ln for ln in table.splitlines() if ln.startswith(f"| {model} | bendvessel"))
         assert f"| {study.ROLLOUT_TIME_S['bendvessel'][model]:.4g} |" in row
         assert f"| {study.DATASETS['bendvessel'].abaqus_s:.4g} |" in row
+        ratio = study.DATASETS["bendvessel"].abaqus_s / study.ROLLOUT_TIME_S["bendvessel"][model]
+        assert row.rstrip().endswith(f"| x{ratio:.0f} |")  # the study's speed-up beside ours
         bench = json.loads((out / "runs" / model / "result.json").read_text())["metrics"]
         assert bench["bench"][0]["solver_s"] > 0  # our solver's time from the dataset
 

@@ -37,7 +37,7 @@ def _add_experiment(sub) -> None:
                     "COUNT)")
     rp.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", dest="sets",
                     help="override a field of the scale (TOML value): train.epochs=5, "
-                    "models=[\"mgn\"], train.model_config.hidden=64, options.trials=20")
+                    "models=[\"mgn\"], model_config.mgn.hidden=64, options.trials=20")
     rp.add_argument("--data-dir", metavar="DIR", help="dataset cache (default: DIR/data)")
     rp.add_argument("--dataset", action="append", metavar="PRESET=FILE", help="use this "
                     "dataset file for a preset instead of generating it (repeatable)")
