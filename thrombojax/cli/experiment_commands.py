@@ -69,10 +69,10 @@ def _seeds(text: str | None) -> tuple[int, ...] | None:
 
 def _hours(seconds: float | None) -> str:
     if seconds is None:
-        return "unknown step time"
+        return "time unknown (no step time recorded)"
     if seconds < 120:
-        return f"{seconds:.0f} s"
-    return f"{seconds / 60:.0f} min" if seconds < 7200 else f"{seconds / 3600:.1f} h"
+        return f"~{seconds:.0f} s"
+    return f"~{seconds / 60:.0f} min" if seconds < 7200 else f"~{seconds / 3600:.1f} h"
 
 
 def _run_list(args) -> int:
@@ -85,7 +85,7 @@ def _run_list(args) -> int:
         for scale in SCALES:
             est = estimate(exp, scale)
             print(f"  {scale:5s}: {est['runs']} runs, {est['steps']:,} training steps, "
-                  f"~{_hours(est['seconds'])}")
+                  f"{_hours(est['seconds'])}")
         print(f"  cost: {estimate(exp, 'cpu')['how']}")
     return 0
 
@@ -100,7 +100,7 @@ def _dry_run(exp, args) -> int:
               f"{run.train.epochs} epochs")
     est = estimate(exp, args.scale)
     print(f"{len(mine)} of {len(runs)} runs; the whole scale: {est['steps']:,} training steps, "
-          f"~{_hours(est['seconds'])} ({est['how']})")
+          f"{_hours(est['seconds'])} ({est['how']})")
     return 0
 
 
