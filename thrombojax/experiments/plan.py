@@ -175,6 +175,7 @@ def estimate(experiment: Experiment, scale_name: str) -> dict:
     known = all(r.model in scale.step_s for r in runs)
     seconds = (sum(_run_steps(r, experiment.kind) * scale.step_s[r.model] for r in runs)
                * (count // max(len(runs), 1)) if known else None)
-    how = (f"{count} runs x epochs x ceil(train windows x (1 + bary_ratio) / batch) steps x "
-           f"step_s ({scale.step_s_source or 'source not recorded'})")
+    how = (f"training only (not evaluation, not dataset generation): {count} runs x epochs x "
+           f"ceil(train windows x (1 + bary_ratio) / batch) steps x step_s "
+           f"({scale.step_s_source or 'source not recorded'})")
     return {"runs": count, "steps": steps, "seconds": seconds, "how": how}
