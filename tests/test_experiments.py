@@ -10,7 +10,13 @@ from thrombojax.cli import main
 from thrombojax.errors import ConfigError, OutputError
 from thrombojax.experiments import execute
 from thrombojax.experiments.data import ensure_dataset
-from thrombojax.experiments.plan import estimate, parse_worker, plan_runs, shard
+from thrombojax.experiments.plan import (
+    estimate,
+    parse_worker,
+    plan_runs,
+    shard,
+    train_windows,
+)
 from thrombojax.experiments.runner import run_experiment
 from thrombojax.experiments.spec import (
     KINDS,
@@ -95,6 +101,12 @@ def test_cost_estimate_counts_steps():
     assert est["runs"] == len(runs) == 12 and est["steps"] == expect
     assert est["seconds"] == pytest.approx(expect * exp.scale("cpu").step_s["mgn"])
     assert estimate(find_experiment("test_mse"), "study")["seconds"] is None  # not measured
+    ladder = plan_runs(find_experiment("stability_ladder"), "cpu")
+    # a split by name: 20 - 1 val - 3 test = 16 sims; push-forward and k-step windows are longer
+    assert [train_windows(r) for r in ladder] == [16 * 39] * 2 + [16 * 38] + [16 * 36] * 2
+    gen = plan_runs(find_experiment("generalisation"), "cpu")
+    assert [train_windows(r, "generalisation") for r in gen[::3]] == [5 * 39, 10 * 39,
+                                                                     15 * 39, 19 * 39]
 
 
 def test_cli_list_and_bad_input(capsys, tmp_path):

@@ -143,8 +143,10 @@ def train_windows(run: Run, kind: str = "sweep") -> int:
     cfg = run.train
     if kind == "generalisation" and preset.kind == "bend":
         n_train = int(float(run.value) // preset.rotation_step_deg) + 1
+    elif cfg.train_sims or cfg.val_sims or cfg.test_sims:  # a split by name
+        n_train = len(cfg.train_sims) or preset.n_sims - len(cfg.val_sims) - len(cfg.test_sims)
     else:
-        n_train = len(cfg.train_sims) or max(preset.n_sims - cfg.n_val - cfg.n_test, 1)
+        n_train = max(preset.n_sims - cfg.n_val - cfg.n_test, 1)
     length = cfg.pushforward_steps + cfg.rollout_steps + 2
     per_sim = max(preset.n_frames + 1 - length + 1 - cfg.skip_frames, 0)
     return n_train * per_sim
