@@ -24,7 +24,8 @@ LAYERS: dict[str, int] = {
     "simulator": 6,
     "train": 7,
     "eval": 8,
-    "cli": 9, "__main__": 10,
+    "experiments": 9,
+    "cli": 10, "__main__": 11,
 }  # fmt: skip
 
 
