@@ -5,8 +5,9 @@
 Rungs (cumulative): baseline (single-step loss) -> + input noise -> + push-forward ->
 + k-step loss with a curriculum -> + guards in the rollout (same model) -> + rotation
 augmentation; then rotation handled by the frame instead: the k-step rung with guards in the
-rigid vessel's frame (exactly invariant to orientation, no augmentation) -> + wall features
-(distance and direction to the nearest vessel node, cut off at 1.5 vessel radii). Every rung
+rigid vessel's frame (exactly invariant to orientation, no augmentation) -> the same with
+gradient clipping (global norm 1); and the rotation rung + wall features (distance and
+direction to the nearest vessel node, cut off at 1.5 vessel radii). Every rung
 trains the same small MeshGraphNet for the same wall-clock budget (the
 epoch count is calibrated on this machine by timing one epoch), then is measured on held-out
 simulations (the split is by name: the last rotation is outside the training range):
@@ -88,8 +89,10 @@ RUNGS: tuple[Rung, ...] = (
                       "curriculum_epochs": 6, "max_rotation": np.pi}, guards=True),
     Rung("frame", {**NOISE, "pushforward_steps": 1, "rollout_steps": 3,
                    "curriculum_epochs": 6, "frame": "vessel"}, guards=True),
-    Rung("wall", {**NOISE, "pushforward_steps": 1, "rollout_steps": 3,
-                  "curriculum_epochs": 6, "frame": "vessel", "wall_features": 1.5}, guards=True),
+    Rung("clip", {**NOISE, "pushforward_steps": 1, "rollout_steps": 3,
+                  "curriculum_epochs": 6, "frame": "vessel", "grad_clip": 1.0}, guards=True),
+    Rung("wall", {**NOISE, "pushforward_steps": 1, "rollout_steps": 3, "curriculum_epochs": 6,
+                  "max_rotation": np.pi, "wall_features": 1.5}, guards=True),
 )
 
 

@@ -145,14 +145,14 @@ def test_recipes():
 
     assert DEFAULT_RECIPE == "rollout" and recipe("study") == {}
     cfg = TrainConfig(**recipe("rollout"))
-    assert cfg.frame == "vessel" and cfg.rollout_steps > 1 and cfg.noise_std > 0
+    assert cfg.rollout_steps > 1 and cfg.pushforward_steps > 0 and cfg.noise_std > 0
     with pytest.raises(ConfigError, match="unknown recipe"):
         recipe("fast")
 
 
 def test_cli_trains_with_the_rollout_recipe_and_reloads_the_step(tmp_path):
-    """`thrombojax train` without --config uses the rollout recipe; the run records the frame
-    and the wall cutoff; the loaded model steps as it trained; a rollout runs through it."""
+    """`thrombojax train` without --config uses the rollout recipe (options above it); the
+    run records the frame and the wall cutoff; the loaded model steps as it trained; a rollout runs through it."""
     from dataset_factory import accelerating_sims
 
     from thrombojax.cli import main
@@ -166,7 +166,8 @@ def test_cli_trains_with_the_rollout_recipe_and_reloads_the_step(tmp_path):
     run = tmp_path / "run"
     assert main(["train", "--dataset", str(data), "--model", "mgn", "--out", str(run),
                  "--tiny", "--epochs", "1", "--batch-size", "2", "--n-val", "1", "--n-test",
-                 "1", "--warmup-epochs", "0.5", "--wall-features", "2", "--quiet"]) == 0
+                 "1", "--warmup-epochs", "0.5", "--wall-features", "2", "--frame", "vessel",
+                 "--quiet"]) == 0
     loaded = load_trained(run)
     cfg = loaded.run.train
     assert (cfg.frame, cfg.rollout_steps, cfg.pushforward_steps) == ("vessel", 3, 1)
