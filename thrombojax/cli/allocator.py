@@ -7,7 +7,8 @@ faults per step with and without). tcmalloc keeps freed pages mapped and reuses 
 
 How: an allocator must be loaded before the process starts allocating, i.e. with ``LD_PRELOAD``
 at ``exec`` time; setting it from inside a running Python is too late. So the console command
-re-executes itself once, ``python -m thrombojax ARGS`` with ``LD_PRELOAD`` naming tcmalloc, when
+re-executes itself once (the same interpreter and the same thrombojax package, ``ARGS``
+unchanged) with ``LD_PRELOAD`` naming tcmalloc, when
 
 * the library is installed (Debian/Ubuntu package ``libtcmalloc-minimal4``; the paths in
   :data:`SEARCH_DIRS`), and
@@ -68,7 +69,7 @@ def preload_environment(environ: Mapping[str, str], library: str | None) -> dict
 
 
 def reexec_with_tcmalloc(argv: Sequence[str]) -> None:
-    """Replace this process by ``python -m thrombojax argv`` under tcmalloc, when due.
+    """Replace this process by the ``thrombojax argv`` command under tcmalloc, when due.
 
     Returns (doing nothing) when :func:`preload_environment` says no, off Linux, or when the
     exec fails; on success it does not return.
@@ -80,7 +81,11 @@ def reexec_with_tcmalloc(argv: Sequence[str]) -> None:
         return
     sys.stdout.flush()
     sys.stderr.flush()
+    # the same thrombojax as this process, whatever the working directory holds
+    root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    code = f"import sys; sys.path.insert(0, {root!r}); from thrombojax.cli import main; " \
+           "sys.exit(main())"
     try:
-        os.execve(sys.executable, [sys.executable, "-m", "thrombojax", *argv], env)
+        os.execve(sys.executable, [sys.executable, "-c", code, *argv], env)
     except OSError:
         return
