@@ -6,11 +6,12 @@ step (:func:`thrombojax.train.step.make_train_step`: graph, forward, backward, A
 case: the study's MeshGraphNet in its plain form (``factorised=False, slot_sum=False``), with
 each rewrite alone, with both (the default) and with both plus ``remat``; the study's Transolver
 with the plain and the split MPNN message layer; batch 1 (as the peer comparison of issue 17) at
-977 (BendVessel) and 2,048 nodes (ClotEntry's sample). The parent then runs rounds, alternating
-the two workers (glibc, tcmalloc, glibc, ...); in a round a worker times ``--steps`` steps of
-every case in turn. Printed per case: the median and range of the step time over all rounds,
-the minor page faults per step (``resource.getrusage().ru_minflt`` deltas around each step) and
-the ratio to the plain form under the same allocator.
+977 (BendVessel) and 2,048 nodes (ClotEntry's sample). Per case a pair of workers is started
+(one process holding every case grew past this machine's memory under tcmalloc, which keeps
+what it frees) and the parent runs rounds alternating the two (glibc, tcmalloc, glibc, ...);
+in a round a worker times ``--steps`` steps. Printed per case: the median and range of the
+step time over all rounds, the minor page faults per step (``resource.getrusage().ru_minflt``
+deltas around each step) and the ratio to the plain form under the same allocator.
 
 Memory. The compiled peak of the training step (``jax.jit(step).lower(...).compile()
 .memory_analysis()``: temporaries + arguments + outputs - aliased) per model and study batch
@@ -169,31 +170,35 @@ def _read(proc: subprocess.Popen, until: str) -> dict:
 
 
 def _speed(args, tcmalloc: str | None, out: list[str]) -> None:
-    cases = [(v, n) for n in args.sizes for v in VARIANTS]
     allocators = {"glibc": None, "tcmalloc": tcmalloc} if tcmalloc else {"glibc": None}
-    # one worker at a time compiles (the second reads the persistent compilation cache)
-    procs = {}
-    for name, lib in allocators.items():
-        procs[name] = _start_worker(cases, args.steps, lib)
-        _read(procs[name], "ready")
     results = {name: [] for name in allocators}
-    loads = []
-    for r in range(args.rounds):
-        for name, proc in procs.items():  # alternate the allocators round by round
-            proc.stdin.write("go\n")
-            proc.stdin.flush()
-            msg = _read(proc, "round")
-            results[name] += msg["round"]
-            loads.append(msg["load"])
-            print(f"# round {r + 1} {name} done, load {msg['load']}", flush=True)
-    for proc in procs.values():
-        proc.stdin.close()
-        proc.wait()
-    out += ["", f"## Training step, batch 1: {args.rounds} rounds x {args.steps} steps per case",
-            "", f"load (1, 5, 15 min) after each worker round: {loads}", "",
+    loads = {}
+    for n in args.sizes:
+        for variant in VARIANTS:
+            # one worker pair per case: tcmalloc keeps what it frees, so a process that ran
+            # several 2,048-node cases grew past this machine's memory (OOM-killed)
+            procs = {}
+            for name, lib in allocators.items():
+                procs[name] = _start_worker([(variant, n)], args.steps, lib)
+                _read(procs[name], "ready")  # one compiles at a time
+            for _ in range(args.rounds):
+                for name, proc in procs.items():  # alternate the allocators round by round
+                    proc.stdin.write("go\n")
+                    proc.stdin.flush()
+                    msg = _read(proc, "round")
+                    results[name] += msg["round"]
+            for proc in procs.values():
+                proc.stdin.close()
+                proc.wait()
+            loads[(variant, n)] = [round(x, 2) for x in os.getloadavg()]
+            print(f"# {variant} {n} done, load {loads[(variant, n)]}", flush=True)
+    out += ["", f"## Training step, batch 1: {args.rounds} rounds x {args.steps} steps per case "
+            "and allocator", "",
+            "Cases run one after another; within a case the glibc and tcmalloc workers alternate "
+            "round by round. Load: 1, 5, 15-minute load average when the case finished.", "",
             "| model | nodes | variant | allocator | step ms median | range | faults/step "
-            "(median) | vs plain, same allocator | loss finite |",
-            "|---|---|---|---|---|---|---|---|---|"]
+            "(median) | vs plain, same allocator | load | loss finite |",
+            "|---|---|---|---|---|---|---|---|---|---|"]
     for n in args.sizes:
         for name, rows in results.items():
             plain_ms = {}
@@ -202,12 +207,13 @@ def _speed(args, tcmalloc: str | None, out: list[str]) -> None:
                 ms = [x["ms"] for x in mine]
                 med = statistics.median(ms)
                 model = VARIANTS[variant][0]
-                plain_ms.setdefault(model, med if variant == PLAIN[model] else None)
-                ratio = med / plain_ms[model] if plain_ms[model] else float("nan")
+                if variant == PLAIN[model]:
+                    plain_ms[model] = med
                 out.append(f"| {model} | {n} | {variant} | {name} | {med:.0f} | "
                            f"{min(ms):.0f}-{max(ms):.0f} | "
                            f"{statistics.median(x['faults'] for x in mine):.0f} | "
-                           f"{ratio:.2f} | {all(x['finite'] for x in mine)} |")
+                           f"{med / plain_ms[model]:.2f} | {loads[(variant, n)]} | "
+                           f"{all(x['finite'] for x in mine)} |")
                 print(out[-1], flush=True)
 
 
