@@ -81,8 +81,9 @@ def _mgn_loss(config, factorised, slot_sum, inputs, graph):
 
 @pytest.mark.parametrize(
     "factorised, slot_sum, remat",
-    [(True, False, False), (False, True, False), (True, True, False), (True, True, True)],
-    ids=["factorised", "slot_sum", "both", "both+remat"],
+    [(True, False, False), (False, True, False), (True, True, False), (True, False, True),
+     (True, True, True)],
+    ids=["factorised", "slot_sum", "both", "factorised+remat", "both+remat"],
 )
 def test_meshgraphnet_rewrites_equal_plain(mgn_case, factorised, slot_sum, remat):
     config, inputs, graph = mgn_case

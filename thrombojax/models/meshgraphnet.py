@@ -34,9 +34,10 @@ the plain form: ``tests/test_mgn_fast.py``; speed: ``benchmarks/train_step.py``)
   (W_r v)_i + b`` (:class:`thrombojax.models.layers.SplitDense` on the one ``dense_0`` kernel):
   the node projections are computed once per node and gathered (sender) or broadcast over the
   row (receiver), never a ``[N*K, 3H]`` concatenation (``factorised=False``: the plain form).
-* Aggregation is a masked sum over the ``K`` slots of each row instead of a ``segment_sum``
-  scatter (``slot_sum=False``: jraph's ``segment_sum``). The dummy node then aggregates zeros
-  instead of the sentinel edges: it only ever feeds sentinel edges, which reach no real node.
+* Aggregation is jraph's ``segment_sum`` by default; ``slot_sum=True`` sums the ``K`` slots of
+  each row instead (masked; the dummy node then aggregates zeros instead of the sentinel edges,
+  which only ever feed sentinel edges). It measured slower in the training step on the CPU
+  (``benchmarks/results/train_step_cpu.md``), so it is off by default.
 * ``config.remat``: every MLP but the decoder is rematerialised
   (:func:`thrombojax.models.layers.remat_call`): the backward pass recomputes its hidden layers
   instead of storing them, so a training step keeps about one ``[N, K, H]`` edge tensor per
@@ -109,12 +110,12 @@ class MeshGraphNet(nn.Module):
     Attributes:
         config: :class:`~thrombojax.models.registry.MeshGraphNetConfig`.
         factorised: factorised first layer of the edge MLPs (module docstring).
-        slot_sum: aggregate by a masked sum over the ``K`` slots (else ``segment_sum``).
+        slot_sum: aggregate by a masked sum over the ``K`` slots (default: ``segment_sum``).
     """
 
     config: MeshGraphNetConfig
     factorised: bool = True
-    slot_sum: bool = True
+    slot_sum: bool = False
 
     def _mlp(self, out: int, *, norm: bool, name: str) -> MLP:
         widths = (self.config.hidden,) * self.config.mlp_layers + (out,)
