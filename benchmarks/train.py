@@ -34,6 +34,7 @@ import numpy as np
 from thrombojax.data.augment import AugmentConfig, augment_batch
 from thrombojax.data.batching import Batch, padding_budget
 from thrombojax.models.registry import create_model, get_config
+from thrombojax.study import training_defaults
 from thrombojax.train.schedule import make_optimizer, make_schedule
 from thrombojax.train.step import data_mesh, init_state, make_train_step, replicate, shard_batch
 from thrombojax.types import NodeType, TargetStats
@@ -72,11 +73,11 @@ def bench(name: str, n_nodes: int, steps: int) -> dict:
     """Compile and steady-state time of one training step of a study config."""
     config = get_config(name)
     model = create_model(name, config)
-    batch_size = config.batch_size
+    batch_size = int(training_defaults(name)["batch_size"])
     mesh = data_mesh()
     host = synthetic_batch(batch_size, n_nodes)
     stats = TargetStats(mean=jnp.zeros(3), std=jnp.full(3, 1e-3))
-    tx = make_optimizer(make_schedule(config.learning_rate, 1000, 10))
+    tx = make_optimizer(make_schedule(training_defaults(name)["lr"], 1000, 10))
     state = replicate(init_state(model, tx, jax.random.PRNGKey(0), host), mesh)
     step = make_train_step(model, tx, stats)
     augment = jax.jit(functools.partial(augment_batch, config=AugmentConfig(max_rotation=np.pi)))

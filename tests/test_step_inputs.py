@@ -152,7 +152,8 @@ def test_recipes():
 
 def test_cli_trains_with_the_rollout_recipe_and_reloads_the_step(tmp_path):
     """`thrombojax train` without --config uses the rollout recipe (options above it); the
-    run records the frame and the wall cutoff; the loaded model steps as it trained; a rollout runs through it."""
+    run records the frame and the wall cutoff; the loaded model steps as it trained; a
+    rollout runs through it."""
     from dataset_factory import accelerating_sims
 
     from thrombojax.cli import main

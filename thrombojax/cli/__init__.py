@@ -4,8 +4,8 @@ Errors that thrombojax raises on purpose (:class:`thrombojax.errors.ThrombojaxEr
 missing files are printed as one line and exit with status 2, never as a traceback. The
 subcommands live in :mod:`.data_commands` (info, import, generate, export) and
 :mod:`.run_commands` (train, evaluate, rollout, bench) and :mod:`.experiment_commands`
-(experiment list / run); library imports happen inside each
-command so ``thrombojax --help`` stays fast.
+(experiment list / run); library imports happen inside each command so ``thrombojax --help``
+stays fast. :mod:`.allocator` runs the command under tcmalloc.
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ import sys
 import warnings
 from collections.abc import Sequence
 
-from thrombojax.cli import data_commands, experiment_commands, run_commands
+from thrombojax.cli import allocator, data_commands, experiment_commands, run_commands
 from thrombojax.errors import ThrombojaxError
 
 __all__ = ["main", "build_parser"]
@@ -53,8 +53,14 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point of the ``thrombojax`` console script. Returns the exit status."""
+    """Entry point of the ``thrombojax`` console script. Returns the exit status.
+
+    Run from the command line (``argv`` None) it first re-executes itself once under tcmalloc
+    when that is installed (:mod:`thrombojax.cli.allocator`; opt out: THROMBOJAX_NO_TCMALLOC=1).
+    """
     args = build_parser().parse_args(argv)
+    if argv is None:
+        allocator.reexec_with_tcmalloc(sys.argv[1:])
     try:
         with warnings.catch_warnings():
             warnings.showwarning = _one_line_warning(args.command)

@@ -66,7 +66,8 @@ def _add_train(sub) -> None:
     p.add_argument("--recipe", choices=("rollout", "study"), help="a named set of training "
                    "options under the explicit ones: 'rollout' (the default without --config "
                    "or --resume: noise 0.01 r, 1 push-forward step, a 3-step loss grown over 6 "
-                   "epochs, rotations up to pi; the stability ladder's best rung) or 'study' (the study's single-step recipe, TrainConfig's "
+                   "epochs, rotations up to pi; the stability ladder's best rung) or 'study' "
+                   "(the study's single-step recipe, TrainConfig's "
                    "defaults)")
     p.add_argument("--frame", choices=("global", "vessel"), help="frame of the learned step: "
                    "'vessel' works in the rigid vessel's principal axes (exactly invariant to "

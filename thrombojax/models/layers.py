@@ -32,6 +32,9 @@ __all__ = [
     "gelu",
     "layer_norm",
     "MLP",
+    "mlp_tail",
+    "remat_call",
+    "SplitDense",
     "RMSNorm",
     "SwiGLU",
     "MPNNEmbedding",
@@ -81,13 +84,96 @@ class MLP(nn.Module):
     @nn.compact
     def __call__(self, x: jax.Array) -> jax.Array:
         """Args: x: ``[..., d_in]``. Returns: ``[..., features[-1]]``."""
-        for i, width in enumerate(self.features):
-            x = nn.Dense(width, kernel_init=self.kernel_init, name=f"dense_{i}")(x)
-            if i < len(self.features) - 1:
-                x = self.activation(x)
-        if self.layer_norm:
-            x = layer_norm("norm")(x)
-        return x
+        x = nn.Dense(self.features[0], kernel_init=self.kernel_init, name="dense_0")(x)
+        return mlp_tail(x, self.features, self.activation, norm=self.layer_norm,
+                        kernel_init=self.kernel_init)
+
+
+def mlp_tail(
+    x: jax.Array,
+    features: Sequence[int],
+    activation: Callable[[jax.Array], jax.Array],
+    *,
+    norm: bool,
+    kernel_init: Initializer = DEFAULT_INIT,
+) -> jax.Array:
+    """The layers of an :class:`MLP` after its first Dense, on that Dense's output ``x``.
+
+    ``act -> dense_1 -> ... -> dense_{L}`` and the optional LayerNorm ``norm``, created in the
+    calling module (call it inside a ``@nn.compact`` method), so a module that computes
+    ``dense_0`` its own way (:class:`SplitDense`) keeps the parameter tree of :class:`MLP`.
+    """
+    for i, width in enumerate(features[1:], 1):
+        x = nn.Dense(width, kernel_init=kernel_init, name=f"dense_{i}")(activation(x))
+    return layer_norm("norm")(x) if norm else x
+
+
+def remat_call(module: nn.Module, *args: jax.Array) -> jax.Array:
+    """``module(*args)``, its activations recomputed in the backward pass instead of stored.
+
+    What ``flax.linen.remat`` promises, made to hold on the CPU: XLA's CPU pipeline drops the
+    optimisation barriers of ``jax.checkpoint`` and common-subexpression elimination then merges
+    the backward recomputation with the forward pass, so every activation is stored anyway (the
+    compiled temporaries do not shrink). Here the backward pass recomputes from the stored
+    inputs with the parameters shifted by ``0 * ct[0]``, a data dependence on the incoming
+    cotangent that no pass can merge away (exact: adding 0 changes no value). Call it inside a
+    ``@nn.compact`` method with an unbound, named submodule; parameters and outputs are those of
+    ``module(*args)``, gradients equal to rounding (``tests/test_mgn_fast.py``).
+
+    Args:
+        module: a submodule (``name=`` set) returning one array.
+        *args: its array arguments (integer arrays get no gradient).
+    """
+    definition = module.clone(parent=None)
+
+    def pure(params, *a):
+        return definition.apply({"params": params}, *a)
+
+    def fwd(mdl, *a):
+        return mdl(*a), (mdl.variables["params"], a)
+
+    def bwd(residuals, ct):
+        params, a = residuals
+        zero = 0.0 * ct.reshape(-1)[0]
+        params = jax.tree.map(lambda p: p + zero.astype(p.dtype), params)
+        _, vjp = jax.vjp(pure, params, *a)
+        params_t, *args_t = vjp(ct)
+        return ({"params": params_t}, *args_t)
+
+    return nn.custom_vjp(lambda mdl, *a: mdl(*a), fwd, bwd)(module, *args)
+
+
+class SplitDense(nn.Module):
+    """``nn.Dense`` of a concatenation ``[x_1, ..., x_P]``, applied part by part.
+
+    ``W [x_1, ..., x_P] + b = W_1 x_1 + ... + W_P x_P + b`` with ``W_p`` the row block of the
+    one kernel that multiplies part ``p``. The parameters are exactly those ``nn.Dense`` would
+    create for the concatenated input (``kernel [sum d_p, features]``, ``bias [features]``, same
+    names, shapes and initialisation), so a checkpoint of one loads into the other. Returning the
+    projections separately lets the caller project per *node* and gather per *edge* instead of
+    concatenating per-edge copies (the factorised first layer of an edge MLP).
+
+    Attributes:
+        features: output width.
+        kernel_init: kernel initialiser (of the whole ``[sum d_p, features]`` kernel).
+        bias_part: the part whose projection carries ``b`` (pick a per-node part: fewer adds).
+    """
+
+    features: int
+    kernel_init: Initializer = DEFAULT_INIT
+    bias_part: int = 0
+
+    @nn.compact
+    def __call__(self, *parts: jax.Array) -> tuple[jax.Array, ...]:
+        """Args: parts ``[..., d_p]`` (any leading shapes). Returns: ``x_p W_p`` per part, ``b``
+        added to part ``bias_part``."""
+        sizes = [x.shape[-1] for x in parts]
+        kernel = self.param("kernel", self.kernel_init, (sum(sizes), self.features), jnp.float32)
+        bias = self.param("bias", nn.initializers.zeros_init(), (self.features,), jnp.float32)
+        starts = [sum(sizes[:p]) for p in range(len(parts))]
+        out = [x @ kernel[a:a + d] for x, a, d in zip(parts, starts, sizes, strict=True)]
+        out[self.bias_part] = out[self.bias_part] + bias
+        return tuple(out)
 
 
 class RMSNorm(nn.Module):
@@ -178,11 +264,17 @@ class MPNNEmbedding(nn.Module):
         dim: embedding width.
         mp_steps: message-passing steps (Erwin's default 3); 0 gives the linear projection only.
         kernel_init: Dense kernel initialiser.
+        split: apply the message layer as :class:`SplitDense` (``W_s h`` and ``W_d h`` once per
+            node, gathered and broadcast to the ``[N, K]`` slots, plus ``W_x (x_j - x_i)``)
+            instead of one Dense on the ``[N, K, 2 dim + 3]`` concatenation; same parameters,
+            same result (``tests/test_layers.py``). False is the plain form, kept for the tests
+            and ``benchmarks/train_step.py``.
     """
 
     dim: int
     mp_steps: int = 3
     kernel_init: Initializer = DEFAULT_INIT
+    split: bool = True
 
     @nn.compact
     def __call__(
@@ -206,11 +298,15 @@ class MPNNEmbedding(nn.Module):
         rel = jnp.where(valid, rel, 0.0)
         count = jnp.maximum(jnp.sum(valid, axis=1), 1).astype(h.dtype)  # [N, 1]
         for step in range(self.mp_steps):
-            h_src = gather_neighbors(h, neighbors)  # [N, K, dim]
-            h_dst = jnp.broadcast_to(h[:, None, :], h_src.shape)
-            msg = dense(name=f"message_{step}")(
-                jnp.concatenate([h_src, h_dst, rel], axis=-1)
-            )
+            if self.split:  # project per node, then gather: no [N, K, 2 dim + 3] concatenation
+                message = SplitDense(self.dim, self.kernel_init, bias_part=1,
+                                     name=f"message_{step}")
+                p_src, p_dst, p_rel = message(h, h, rel)
+                msg = gather_neighbors(p_src, neighbors) + p_dst[:, None, :] + p_rel
+            else:
+                h_src = gather_neighbors(h, neighbors)  # [N, K, dim]
+                h_dst = jnp.broadcast_to(h[:, None, :], h_src.shape)
+                msg = dense(name=f"message_{step}")(jnp.concatenate([h_src, h_dst, rel], -1))
             msg = layer_norm(f"message_norm_{step}")(gelu(msg))
             agg = jnp.sum(jnp.where(valid, msg, 0.0), axis=1) / count
             upd = dense(name=f"update_{step}")(jnp.concatenate([h, agg], axis=-1))

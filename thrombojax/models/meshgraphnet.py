@@ -17,14 +17,32 @@ Conventions (where the references differ; we follow PhysicsNeMo, which the study
 * Residual order: the edge update comes first and the node update aggregates the post-residual
   edge features (PhysicsNeMo ``MeshEdgeBlock`` -> ``MeshNodeBlock``); DeepMind's reference
   aggregates the edge MLP outputs before their residual.
-* Aggregation: sum (``jraph.segment_sum``) over incoming edges; the edge MLP input is
-  ``[e_ij, v_sender, v_receiver]`` (PhysicsNeMo's order).
+* Aggregation: sum over incoming edges; the edge MLP input is ``[e_ij, v_sender, v_receiver]``
+  (PhysicsNeMo's order).
 * Edge displacement sign: ``x_receiver - x_sender`` (= ``x_i - x_j`` in the thesis); DeepMind uses
   the opposite sign, which only flips the first encoder weights.
 * Mesh and world edges are one edge set (as in the study and PhysicsNeMo).
 * Graph layout: :func:`thrombojax.graph.neighbors.to_graphs_tuple` appends one zero dummy node
   that receives every sentinel edge, so padded slots never reach a real node and no edge mask
   is needed; padded (masked) nodes are in no neighbour list, so they never reach real nodes.
+
+How it is computed (same parameters and, on the real nodes, the same outputs and gradients as
+the plain form: ``tests/test_mgn_fast.py``; speed: ``benchmarks/train_step.py``):
+
+* Edges live in the neighbour list's ``[N, K, H]`` slots (edge ``i*K + s`` is slot ``s`` of row
+  ``i``). The edge MLP's first layer is factorised, ``W [e, v_s, v_r] + b = W_e e + (W_s v)[s] +
+  (W_r v)_i + b`` (:class:`thrombojax.models.layers.SplitDense` on the one ``dense_0`` kernel):
+  the node projections are computed once per node and gathered (sender) or broadcast over the
+  row (receiver), never a ``[N*K, 3H]`` concatenation (``factorised=False``: the plain form).
+* Aggregation is jraph's ``segment_sum`` by default; ``slot_sum=True`` sums the ``K`` slots of
+  each row instead (masked; the dummy node then aggregates zeros instead of the sentinel edges,
+  which only ever feed sentinel edges). It measured slower in the training step on the CPU
+  (``benchmarks/results/train_step_cpu.md``), so it is off by default.
+* ``config.remat``: every MLP but the decoder is rematerialised
+  (:func:`thrombojax.models.layers.remat_call`): the backward pass recomputes its hidden layers
+  instead of storing them, so a training step keeps about one ``[N, K, H]`` edge tensor per
+  block instead of about ten, for about one more forward pass of compute (peaks:
+  ``benchmarks/train_step.py``).
 """
 
 from __future__ import annotations
@@ -37,11 +55,11 @@ import jax.numpy as jnp
 import jraph
 
 from thrombojax.graph.neighbors import NeighborList, edge_displacements, to_graphs_tuple
-from thrombojax.models.layers import MLP
+from thrombojax.models.layers import MLP, SplitDense, mlp_tail, remat_call
 from thrombojax.models.registry import FlaxSurrogate, MeshGraphNetConfig
 from thrombojax.types import ModelInput
 
-__all__ = ["MeshGraphNet", "MeshGraphNetSurrogate", "edge_features"]
+__all__ = ["EdgeMLP", "MeshGraphNet", "MeshGraphNetSurrogate", "edge_features"]
 
 OUTPUT_DIM: int = 3
 
@@ -52,14 +70,52 @@ def edge_features(positions: jax.Array, graph: NeighborList) -> jax.Array:
     return jnp.concatenate([dx, dist], axis=-1)
 
 
+class EdgeMLP(nn.Module):
+    """The edge MLP of one processor block on ``[e_ij, v_sender, v_receiver]``.
+
+    Same parameters as ``MLP((hidden,) * layers + (hidden,), relu, layer_norm=True)`` on the
+    concatenation; ``factorised`` computes the first layer per node (module docstring).
+
+    Attributes:
+        hidden: width of every layer. layers: hidden layers. factorised: see above.
+    """
+
+    hidden: int
+    layers: int
+    factorised: bool = True
+
+    @nn.compact
+    def __call__(
+        self, edges: jax.Array, nodes: jax.Array, senders: jax.Array, receivers: jax.Array
+    ) -> jax.Array:
+        """Args: edges ``[N, K, H]``, nodes ``[N+1, H]`` (dummy last), senders ``[N, K]`` and
+        receivers ``[N*K]`` (sentinel ``N``). Returns: ``[N, K, H]``."""
+        n, k, _ = edges.shape
+        widths = (self.hidden,) * (self.layers + 1)
+        if self.factorised:
+            first = SplitDense(self.hidden, bias_part=2, name="dense_0")
+            p_edge, p_send, p_recv = first(edges, nodes, nodes[:n])
+            x = p_edge + p_send[senders] + p_recv[:, None, :]
+        else:
+            flat = jnp.concatenate(
+                [edges.reshape(n * k, -1), nodes[senders.reshape(-1)], nodes[receivers]], axis=-1
+            )
+            x = nn.Dense(self.hidden, name="dense_0")(flat).reshape(n, k, self.hidden)
+        return mlp_tail(x, widths, jax.nn.relu, norm=True)
+
+
 class MeshGraphNet(nn.Module):
     """The MeshGraphNet network on one sample.
 
     Attributes:
         config: :class:`~thrombojax.models.registry.MeshGraphNetConfig`.
+        factorised: factorised first layer of the edge MLPs (module docstring).
+        slot_sum: aggregate by a masked sum over the ``K`` slots (default: ``segment_sum``).
     """
 
     config: MeshGraphNetConfig
+    factorised: bool = True
+    slot_sum: bool = False
 
     def _mlp(self, out: int, *, norm: bool, name: str) -> MLP:
         widths = (self.config.hidden,) * self.config.mlp_layers + (out,)
@@ -78,19 +134,31 @@ class MeshGraphNet(nn.Module):
         Returns:
             ``[n_nodes, 3]``.
         """
-        hidden = self.config.hidden
-        n = inputs.n_nodes
+        cfg, hidden = self.config, self.config.hidden
+        n, k = graph.indices.shape
         g: jraph.GraphsTuple = to_graphs_tuple(
             graph, inputs.node_features, edge_features(inputs.positions, graph)
         )
-        nodes = self._mlp(hidden, norm=True, name="node_encoder")(g.nodes)  # [N+1, H]
-        edges = self._mlp(hidden, norm=True, name="edge_encoder")(g.edges)  # [N*K, H]
-        for b in range(self.config.processor_size):
-            edge_in = jnp.concatenate([edges, nodes[g.senders], nodes[g.receivers]], axis=-1)
-            edges = edges + self._mlp(hidden, norm=True, name=f"edge_block_{b}")(edge_in)
-            agg = jraph.segment_sum(edges, g.receivers, num_segments=n + 1)
+        # a float 0/1 mask: a multiply keeps only [N, K, 1] for the backward pass, where a
+        # jnp.where would keep its [N, K, H] broadcast mask and zeros
+        valid = (graph.indices < n)[..., None].astype(jnp.float32)  # [N, K, 1]
+
+        def call(module, *args):
+            return remat_call(module, *args) if cfg.remat else module(*args)
+
+        nodes = call(self._mlp(hidden, norm=True, name="node_encoder"), g.nodes)  # [N+1, H]
+        edges = call(self._mlp(hidden, norm=True, name="edge_encoder"), g.edges)  # [N*K, H]
+        edges = edges.reshape(n, k, hidden)
+        for b in range(cfg.processor_size):
+            update = EdgeMLP(hidden, cfg.mlp_layers, self.factorised, name=f"edge_block_{b}")
+            edges = edges + call(update, edges, nodes, graph.indices, g.receivers)
+            if self.slot_sum:
+                agg = jnp.sum(edges * valid, axis=1)  # [N, H]
+                agg = jnp.concatenate([agg, jnp.zeros((1, hidden), agg.dtype)], axis=0)
+            else:
+                agg = jraph.segment_sum(edges.reshape(n * k, hidden), g.receivers, n + 1)
             node_in = jnp.concatenate([nodes, agg], axis=-1)
-            nodes = nodes + self._mlp(hidden, norm=True, name=f"node_block_{b}")(node_in)
+            nodes = nodes + call(self._mlp(hidden, norm=True, name=f"node_block_{b}"), node_in)
         return self._mlp(OUTPUT_DIM, norm=False, name="decoder")(nodes[:n])
 
 

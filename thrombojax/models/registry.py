@@ -71,6 +71,7 @@ class MeshGraphNetConfig:
         mlp_layers: hidden layers per MLP (PhysicsNeMo ``num_layers_*`` default 2).
         radius: radius of the world-edge graph in scaled coordinates.
         max_neighbors: neighbour cap per node (torch_cluster's default 32).
+        remat: rematerialise the processor MLPs in the backward pass (less memory, more compute).
     """
 
     hidden: int = 64
@@ -78,6 +79,7 @@ class MeshGraphNetConfig:
     mlp_layers: int = 2
     radius: float = 0.56
     max_neighbors: int = 32
+    remat: bool = False
 
     def __post_init__(self) -> None:
         _check_positive(self, "hidden", "processor_size", "mlp_layers", "radius", "max_neighbors")

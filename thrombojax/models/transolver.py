@@ -130,9 +130,12 @@ class Transolver(nn.Module):
 
     Attributes:
         config: :class:`~thrombojax.models.registry.TransolverConfig`.
+        split_messages: the embedding's split message layer (``MPNNEmbedding.split``; False:
+            the plain concatenation, for ``benchmarks/train_step.py``).
     """
 
     config: TransolverConfig
+    split_messages: bool = True
 
     @nn.compact
     def __call__(
@@ -150,7 +153,8 @@ class Transolver(nn.Module):
         cfg = self.config
         feats = inputs.node_features
         positions = jax.lax.stop_gradient(inputs.positions)
-        emb = MPNNEmbedding(cfg.hidden, cfg.mp_steps, name="embedding")(
+        emb = MPNNEmbedding(cfg.hidden, cfg.mp_steps, split=self.split_messages,
+                            name="embedding")(
             feats, positions, graph.indices
         )
         x = MLP((2 * cfg.hidden, cfg.hidden), activation=gelu, kernel_init=_INIT,
