@@ -26,12 +26,8 @@ endif
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PY) -m venv $(VENV)
 	$(BIN)/python -m pip install -q --upgrade pip
-<<<<<<< HEAD
 	$(BIN)/python -m pip install -q -e '.[test,experiments]'
-=======
-	$(BIN)/python -m pip install -q -e '.[test]'
 	-@$(MAKE) --no-print-directory tcmalloc
->>>>>>> h17
 	touch $(STAMP)
 
 # Best effort, never fails: only as root with apt-get, and only when not installed yet.
