@@ -170,3 +170,12 @@ def run_kill_trials(
     complete_files(out)
     assert checksums(inputs) == before
     return TrialReport(startup, duration, times, killed)
+
+
+def tiny_dataset(path: Path, n_sims: int = 3) -> Path:
+    """Generate a ``bendvessel-tiny`` dataset of ``n_sims`` simulations at ``path`` (in process)."""
+    from thrombojax.cli import main
+
+    assert main(["generate", "bendvessel-tiny", "--out", str(path), "--sims", str(n_sims),
+                 "--quiet"]) == 0
+    return path

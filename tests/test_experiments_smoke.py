@@ -8,12 +8,11 @@ per module into a shared data folder, as ``--data-dir`` does.
 import json
 
 import pytest
+from experiment_helpers import run_smoke, study_pm
 
 from thrombojax import study
 from thrombojax.cli import main
 from thrombojax.experiments.data import ensure_dataset
-from thrombojax.experiments.runner import run_experiment
-from thrombojax.experiments.spec import find_experiment
 from thrombojax.train.config import TrainConfig, load_config_file
 
 
@@ -22,19 +21,6 @@ def data_dir(tmp_path_factory):
     folder = tmp_path_factory.mktemp("expdata")
     ensure_dataset("bendvessel-tiny", folder)
     return folder
-
-
-def _run(name, tmp_path, data_dir):
-    out = tmp_path / name
-    res = run_experiment(find_experiment(name), "smoke", out, data_dir=data_dir,
-                         log=lambda m: None)
-    assert res["finished"] == res["runs"] and res["report"] is not None
-    return out, (out / "table.md").read_text(), res
-
-
-def _pm(kind, model):
-    m, s = study.TEST_MSE[kind][model]
-    return f"{m:.4g} ± {s:.2g}"
 
 
 def test_test_mse_table_beside_the_study(tmp_path, data_dir, capsys):
@@ -47,7 +33,7 @@ def test_test_mse_table_beside_the_study(tmp_path, data_dir, capsys):
         for model in ("mgn", "transolver", "erwin"):
             row = next(ln for ln in table.splitlines()
                        if ln.startswith(f"| {preset} | {model} |"))
-            assert _pm(kind, model) in row
+            assert study_pm(kind, model) in row
             ours = json.loads((out / "runs" / f"{preset}__{model}__s0" / "result.json")
                               .read_text())["metrics"]["mse"]
             assert f"| {ours:.4g} |" in row
@@ -55,7 +41,7 @@ def test_test_mse_table_beside_the_study(tmp_path, data_dir, capsys):
 
 
 def test_timing(tmp_path, data_dir):
-    out, table, _ = _run("rollout_timing", tmp_path, data_dir)
+    out, table, _ = run_smoke("rollout_timing", tmp_path, data_dir)
     for model in ("mgn", "transolver"):
         row = next(ln for ln in table.splitlines() if ln.startswith(f"| {model} | bendvessel"))
         assert f"| {study.ROLLOUT_TIME_S['bendvessel'][model]:.4g} |" in row

@@ -5,10 +5,9 @@ import json
 
 import numpy as np
 import pytest
+from experiment_helpers import run_smoke, study_pm
 
-from thrombojax import study
 from thrombojax.experiments.data import ensure_dataset
-from thrombojax.experiments.runner import run_experiment
 from thrombojax.experiments.spec import find_experiment
 
 
@@ -20,29 +19,16 @@ def data_dir(tmp_path_factory):
     return folder
 
 
-def _run(name, tmp_path, data_dir):
-    out = tmp_path / name
-    res = run_experiment(find_experiment(name), "smoke", out, data_dir=data_dir,
-                         log=lambda m: None)
-    assert res["finished"] == res["runs"] and res["report"] is not None
-    return out, (out / "table.md").read_text(), res
-
-
-def _pm(kind, model):
-    m, s = study.TEST_MSE[kind][model]
-    return f"{m:.4g} ± {s:.2g}"
-
-
 @pytest.mark.parametrize("name", ["bary_ratio_sweep", "node_count_sweep", "generalisation"])
 def test_sweeps(name, tmp_path, data_dir):
-    out, table, _ = _run(name, tmp_path, data_dir)
+    out, table, _ = run_smoke(name, tmp_path, data_dir)
     exp = find_experiment(name)
     values = exp.scale("smoke").values
     rows = [ln for ln in table.splitlines() if ln.startswith("| bendvessel-tiny |")
             or ln.startswith("| clotentry-tiny |")]
     assert len(rows) == len(values)
     kind = "clotentry" if name == "node_count_sweep" else "bendvessel"
-    assert all(_pm(kind, "mgn") in r for r in rows)
+    assert all(study_pm(kind, "mgn") in r for r in rows)
     assert (out / "sweep.png").stat().st_size > 0
     if name == "generalisation":  # tested on the largest rotation, trained up to the value
         for v in values:
@@ -55,7 +41,7 @@ def test_sweeps(name, tmp_path, data_dir):
 
 
 def test_rollouts_and_ladder(tmp_path, data_dir):
-    out, table, _ = _run("rollouts", tmp_path, data_dir)
+    out, table, _ = run_smoke("rollouts", tmp_path, data_dir)
     for model in ("mgn", "transolver"):
         res = json.loads((out / "runs" / f"bendvessel-tiny__{model}__s0" / "result.json")
                          .read_text())["metrics"]["rollout"]
@@ -63,7 +49,7 @@ def test_rollouts_and_ladder(tmp_path, data_dir):
         assert curve.shape == (7,) and np.all(np.isfinite(curve))  # 8 frames, skip 1
         assert f"{res['mse_full_r2']:.4g}" in table
     assert (out / "rollout_error.png").stat().st_size > 0
-    out, table, _ = _run("stability_ladder", tmp_path, data_dir)
+    out, table, _ = run_smoke("stability_ladder", tmp_path, data_dir)
     assert "| baseline |" in table and "| kstep |" in table and "| kstep + guards |" in table
     assert (out / "runs" / "bendvessel-tiny__mgn__rung-kstep__s0" / "rollout_guards").is_dir()
     cfg = json.loads((out / "runs" / "bendvessel-tiny__mgn__rung-kstep__s0" / "config.json")

@@ -5,17 +5,13 @@ after the next run. See ``tests/kill_trials.py``."""
 from __future__ import annotations
 
 import pytest
-from kill_trials import TRIALS, run_kill_trials
-
-from thrombojax.cli import main
+from kill_trials import TRIALS, run_kill_trials, tiny_dataset
 
 pytestmark = pytest.mark.slow_safety
 
 
 def test_kill_export_20_trials(tmp_path):
-    data = tmp_path / "bv.h5"
-    assert main(["generate", "bendvessel-tiny", "--out", str(data), "--sims", "3",
-                 "--quiet"]) == 0
+    data = tiny_dataset(tmp_path / "bv.h5")
     out = tmp_path / "ex"
     argv = ["export", str(data), "--out", str(out), "--force", "--quiet"]
     report = run_kill_trials(argv, out, [data], seed=14_04)

@@ -5,7 +5,7 @@ temporary is left after the next run. See ``tests/kill_trials.py``."""
 from __future__ import annotations
 
 import pytest
-from kill_trials import TRIALS, run_kill_trials
+from kill_trials import TRIALS, run_kill_trials, tiny_dataset
 
 from thrombojax.cli import main
 
@@ -13,9 +13,7 @@ pytestmark = pytest.mark.slow_safety
 
 
 def test_kill_rollout_20_trials(tmp_path):
-    data = tmp_path / "bv.h5"
-    assert main(["generate", "bendvessel-tiny", "--out", str(data), "--sims", "3",
-                 "--quiet"]) == 0
+    data = tiny_dataset(tmp_path / "bv.h5")
     run = tmp_path / "run"
     assert main(["train", "--dataset", str(data), "--model", "mgn", "--out", str(run), "--tiny",
                  "--epochs", "1", "--warmup-epochs", "0", "--n-val", "1", "--quiet"]) == 0

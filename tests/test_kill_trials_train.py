@@ -6,9 +6,8 @@ run. See ``tests/kill_trials.py``."""
 from __future__ import annotations
 
 import pytest
-from kill_trials import TRIALS, run_kill_trials
+from kill_trials import TRIALS, run_kill_trials, tiny_dataset
 
-from thrombojax.cli import main
 from thrombojax.train.state import latest_step, load_trained
 
 pytestmark = pytest.mark.slow_safety
@@ -21,9 +20,7 @@ def checkpoints_load(run):
 
 
 def test_kill_train_20_trials(tmp_path):
-    data = tmp_path / "bv.h5"
-    assert main(["generate", "bendvessel-tiny", "--out", str(data), "--sims", "3",
-                 "--quiet"]) == 0
+    data = tiny_dataset(tmp_path / "bv.h5")
     run = tmp_path / "run"
     run.mkdir()
     notes = run / "notes.txt"  # not a run file: train --force must leave it alone

@@ -148,15 +148,8 @@ def _plot_sweep(experiment: Experiment, groups: dict, path: pathlib.Path) -> Non
         stats = [mean_std(v) for _, v in pts]
         ax.errorbar(xs, [s[0] for s in stats], yerr=[s[1] for s in stats], marker="o",
                     capsize=3, label=f"{model} ({dataset})")
-    ax.set_xlabel(experiment.sweep or "trained on rotations up to (deg)")
-    ax.set_ylabel("test MSE (scaled coordinates)")
-    ax.set_yscale("log")
-    ax.set_title(experiment.title)
-    ax.legend(fontsize=8)
-    fig.tight_layout()
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, dpi=120)
-    plt.close(fig)
+    _save_log_plot(fig, ax, path, experiment.title, experiment.sweep
+                   or "trained on rotations up to (deg)", "test MSE (scaled coordinates)", 8)
 
 
 def _plot_rollouts(experiment: Experiment, groups: dict, path: pathlib.Path) -> None:
@@ -177,11 +170,18 @@ def _plot_rollouts(experiment: Experiment, groups: dict, path: pathlib.Path) -> 
                                                             for ro in ros], axis=0))
     if cv is not None:
         ax.plot(*cv, "k--", label="constant velocity")
+    _save_log_plot(fig, ax, path, experiment.title, "rollout step",
+                   "MSE of clot nodes (vessel radii$^2$)", 7)
+
+
+def _save_log_plot(fig, ax, path: pathlib.Path, title: str, xlabel: str, ylabel: str,
+                   legend_size: int) -> None:
+    """Log y axis, labels, title and legend; write the figure atomically and close it."""
     ax.set_yscale("log")
-    ax.set_xlabel("rollout step")
-    ax.set_ylabel("MSE of clot nodes (vessel radii$^2$)")
-    ax.set_title(experiment.title)
-    ax.legend(fontsize=7)
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    ax.set_title(title)
+    ax.legend(fontsize=legend_size)
     fig.tight_layout()
     with atomic_path(path) as tmp:
         fig.savefig(tmp, dpi=120)
