@@ -102,14 +102,15 @@ def test_config_refuses_what_cannot_fit_even_on_one_window():
 
 def test_cli_train_refuses_with_the_dataset_sizes(tmp_path, capsys):
     """A ratio that fits one window passes the option check; on the dataset's 16 training
-    windows it cannot fit: one line, exit 2, before any compilation or output file."""
+    windows (the study recipe's 3-frame windows) it cannot fit: one line, exit 2, before any
+    compilation or output file."""
     data = write_dataset(tmp_path / "d.h5", accelerating_sims(n_sims=4, n_nodes=60, n_frames=6),
                          name="d", source="t")
     ratio = available_memory() / PLAN_BYTES_PER_ENTRY / 4  # one window: a quarter of memory
     TrainConfig(bary_ratio=ratio)
     run = tmp_path / "run"
     code = main(["train", "--dataset", str(data), "--model", "mgn", "--out", str(run), "--tiny",
-                 "--n-val", "1", "--bary-ratio", repr(ratio), "--quiet"])
+                 "--n-val", "1", "--bary-ratio", repr(ratio), "--recipe", "study", "--quiet"])
     err = capsys.readouterr().err
     assert code == 2 and "Traceback" not in err and len(err.strip().splitlines()) == 1, err
     assert f"{data}: --bary-ratio" in err and "available" in err
