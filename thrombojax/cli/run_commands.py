@@ -19,11 +19,14 @@ def _add_train(sub) -> None:
         "train",
         help="train a surrogate (MeshGraphNet, Transolver, Erwin) on a dataset",
         description=(
-            "Train a step-by-step surrogate as the study did: AdamW with linear warm-up then "
-            "cosine decay, masked MSE on clot nodes, random rotations, optional node subsampling "
-            "and BaryCentricSampling. Writes DIR/config.json, DIR/checkpoints/{best,last}, "
-            "DIR/metrics.jsonl and DIR/loss.png. Options left out take the --config file's "
-            "values, else the study's (each model's batch size and learning rate)."
+            "Train a step-by-step surrogate: AdamW with linear warm-up then cosine decay, "
+            "masked MSE on clot nodes, random rotations, optional node subsampling and "
+            "BaryCentricSampling, and by default the rollout recipe on top (--recipe: input "
+            "noise, push-forward, a 3-step unrolled loss; '--recipe study' trains as the "
+            "study did). Writes DIR/config.json, DIR/checkpoints/{best,last}, "
+            "DIR/metrics.jsonl and DIR/loss.png. Options left out take the recipe's, the "
+            "--config file's, else the study's values (each model's batch size and learning "
+            "rate)."
         ),
     )
     p.add_argument("--dataset", metavar="FILE", help="dataset .h5 file (default: the dataset of "
