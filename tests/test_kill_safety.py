@@ -52,8 +52,10 @@ def kill_while_writing(argv: list[str], folder: Path, after: int = 1,
     deadline = time.monotonic() + timeout
     killed, seen = False, set()
     while proc.poll() is None and time.monotonic() < deadline:
-        if folder.exists():
+        try:  # the command renames and removes its temporaries while we look
             seen |= {p for p in folder.rglob("*") if tag in p.name}
+        except FileNotFoundError:
+            pass
         if len(seen) >= after:
             proc.send_signal(signal.SIGKILL)
             killed = True
