@@ -21,10 +21,23 @@ import jax.numpy as jnp
 
 from thrombojax.types import NodeType, clot_mask
 
-__all__ = ["WALL_NODE_FEATURES", "nearest_vessel_node", "wall_node_features"]
+__all__ = ["WALL_NODE_FEATURES", "clipped_distance_direction", "nearest_vessel_node",
+           "wall_node_features"]
 
 WALL_NODE_FEATURES: int = 4
 """Width of :func:`wall_node_features`: clipped distance / cutoff and a 3-D direction."""
+
+
+def clipped_distance_direction(diff: jax.Array, cutoff: float) -> jax.Array:
+    """``[..., 4]`` features of vectors ``diff [..., 3]`` from a node to its nearest wall point:
+    ``min(d, cutoff) / cutoff`` and the unit vector times ``d < cutoff`` (zero when ``d`` is 0).
+    The one formula of the wall features (also :func:`thrombojax.simulator.walls.wall_features`).
+    """
+    sq = jnp.sum(diff * diff, axis=-1)
+    d = jnp.where(sq > 0, jnp.sqrt(jnp.where(sq > 0, sq, 1.0)), 0.0)  # zero gradient at 0
+    near = (d < cutoff) & (d > 0)
+    direction = jnp.where(near[..., None], diff / jnp.where(near, d, 1.0)[..., None], 0.0)
+    return jnp.concatenate([jnp.minimum(d, cutoff)[..., None] / cutoff, direction], axis=-1)
 
 
 def nearest_vessel_node(
@@ -71,11 +84,7 @@ def wall_node_features(
         raise ValueError(f"wall features: cutoff must be > 0, got {cutoff!r}")
     x = jax.lax.stop_gradient(x)
     j = nearest_vessel_node(x, node_type, mask)
-    diff = x[j] - x
-    d = jnp.sqrt(jnp.maximum(jnp.sum(diff * diff, axis=-1), 0.0))
-    near = (d < cutoff) & (d > 0)
-    direction = jnp.where(near[:, None], diff / jnp.where(near, d, 1.0)[:, None], 0.0)
-    feats = jnp.concatenate([jnp.minimum(d, cutoff)[:, None] / cutoff, direction], axis=-1)
+    feats = clipped_distance_direction(x[j] - x, cutoff)
     has_wall = jnp.any(jnp.asarray(mask, bool) & (jnp.asarray(node_type) == NodeType.VESSEL))
     keep = clot_mask(node_type, mask) & has_wall
     return jnp.where(keep[:, None], feats, 0.0)

@@ -139,10 +139,6 @@ class MeshGraphNet(nn.Module):
         g: jraph.GraphsTuple = to_graphs_tuple(
             graph, inputs.node_features, edge_features(inputs.positions, graph)
         )
-        # a float 0/1 mask: a multiply keeps only [N, K, 1] for the backward pass, where a
-        # jnp.where would keep its [N, K, H] broadcast mask and zeros
-        valid = (graph.indices < n)[..., None].astype(jnp.float32)  # [N, K, 1]
-
         def call(module, *args):
             return remat_call(module, *args) if cfg.remat else module(*args)
 
@@ -153,6 +149,9 @@ class MeshGraphNet(nn.Module):
             update = EdgeMLP(hidden, cfg.mlp_layers, self.factorised, name=f"edge_block_{b}")
             edges = edges + call(update, edges, nodes, graph.indices, g.receivers)
             if self.slot_sum:
+                # a float 0/1 mask: a multiply keeps only [N, K, 1] for the backward pass,
+                # where a jnp.where would keep its [N, K, H] broadcast mask and zeros
+                valid = (graph.indices < n)[..., None].astype(jnp.float32)  # [N, K, 1]
                 agg = jnp.sum(edges * valid, axis=1)  # [N, H]
                 agg = jnp.concatenate([agg, jnp.zeros((1, hidden), agg.dtype)], axis=0)
             else:

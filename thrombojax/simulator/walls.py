@@ -15,6 +15,7 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
+from thrombojax.graph.wall_nodes import clipped_distance_direction
 from thrombojax.simulator.wall import Wall, nearest_wall_point, safe_norm
 
 __all__ = ["WALL_FEATURES", "wall_features", "rest_edge_features", "fraction_outside_wall"]
@@ -37,12 +38,7 @@ def wall_features(
         ``[N, 4]``: ``min(d, cutoff) / cutoff`` (1 far from the wall) and the unit vector from
         the node to its nearest wall point times ``d < cutoff`` (zero when ``d`` is 0).
     """
-    q = nearest_wall_point(x, wall)
-    diff = q.point - x
-    d = safe_norm(diff)
-    near = (d < cutoff) & (d > 0)
-    direction = jnp.where(near[:, None], diff / jnp.where(near, d, 1.0)[:, None], 0.0)
-    feats = jnp.concatenate([jnp.minimum(d, cutoff)[:, None] / cutoff, direction], axis=-1)
+    feats = clipped_distance_direction(nearest_wall_point(x, wall).point - x, cutoff)
     if node_mask is not None:
         feats = jnp.where(node_mask[:, None], feats, 0.0)
     return feats
