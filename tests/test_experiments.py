@@ -268,3 +268,14 @@ def test_search_without_optuna_is_one_clear_error(tmp_path, capsys, monkeypatch)
                  str(tmp_path / "s")]) == 2
     assert "needs Optuna" in capsys.readouterr().err
     assert not (tmp_path / "s").exists()
+
+
+def test_seeds_option_is_a_count_or_a_list():
+    from thrombojax.cli.experiment_commands import _seeds
+
+    assert _seeds("3") == (0, 1, 2) and _seeds("0,") == (0,) and _seeds("2,5") == (2, 5)
+    assert _seeds(None) is None
+    with pytest.raises(ConfigError, match="give a list: --seeds 0,"):
+        _seeds("0")
+    with pytest.raises(ConfigError, match=">= 0"):
+        _seeds("-1,2")

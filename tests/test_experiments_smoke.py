@@ -34,9 +34,13 @@ def test_test_mse_table_beside_the_study(tmp_path, data_dir, capsys):
             row = next(ln for ln in table.splitlines()
                        if ln.startswith(f"| {preset} | {model} |"))
             assert study_pm(kind, model) in row
-            ours = json.loads((out / "runs" / f"{preset}__{model}__s0" / "result.json")
-                              .read_text())["metrics"]["mse"]
-            assert f"| {ours:.4g} |" in row
+            m = json.loads((out / "runs" / f"{preset}__{model}__s0" / "result.json")
+                           .read_text())["metrics"]
+            # scaled, physical (vessel radii squared) and against constant velocity
+            for value in (m["mse"], m["mse_r2"], m["mse"] / m["cv_mse"]):
+                assert f"| {value:.4g} |" in row
+    assert "ours / CV" in table and "(r^2)" in table
+    assert (out / "test_mse.png").stat().st_size > 0
     assert "3 of 3 done" in printed
 
 

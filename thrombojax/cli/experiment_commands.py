@@ -61,6 +61,9 @@ def _seeds(text: str | None) -> tuple[int, ...] | None:
     except ValueError:
         raise ConfigError(f"--seeds expects a count or a list of integers, got '{text}'") from None
     if len(items) == 1 and "," not in text:
+        if items[0] < 1:
+            raise ConfigError(f"--seeds {text}: a count of seeds must be >= 1 (for seed "
+                              f"{items[0]} alone give a list: --seeds {items[0]},)")
         items = list(range(items[0]))
     if not items or min(items) < 0:
         raise ConfigError(f"--seeds {text}: need at least one seed, all >= 0")

@@ -2,13 +2,20 @@
 
 :func:`write_report` reads every run's ``result.json`` and writes ``DIR/table.md`` (the table,
 how to read it, the device, versions, date and load of ``thrombojax.eval.tables.environment``),
-``DIR/results.json`` (every aggregate) and the plots: ``sweep.png`` (a sweep or a
-generalisation: test MSE against the swept value, error bars one std over seeds, one line per
-model and dataset) and ``rollout_error.png`` (rollouts and the ladder: MSE per rollout step per
-model, shaded one std over seeds, constant velocity dashed). The study's numbers are those of
-``thrombojax/study.py``: the 5-seed test MSE (``TEST_MSE``) and the rollout times
-(``ROLLOUT_TIME_S``, Abaqus times in ``DATASETS``); the study published no per-value sweep
-numbers, so sweeps show its test MSE at the setting it kept.
+``DIR/results.json`` (every aggregate) and the plots:
+
+* ``test_mse.png`` (the seeds table): test MSE per model and dataset, one-std error bars,
+  every seed a dot, constant velocity dashed;
+* ``sweep.png`` (a sweep or a generalisation): test MSE against the swept value, error bars one
+  std over seeds, one line per model and dataset, constant velocity dashed;
+* ``rollout_error.png`` (rollouts and the ladder): MSE per rollout step per model, shaded one
+  std over seeds, constant velocity dashed.
+
+Test MSE is given in scaled coordinates (the study's metric), in vessel radii squared and as a
+ratio to constant velocity. The study's numbers are those of ``thrombojax/study.py``: the
+5-seed test MSE (``TEST_MSE``) and the rollout times (``ROLLOUT_TIME_S``, Abaqus times in
+``DATASETS``); the study published no per-value sweep numbers, so sweeps show its test MSE at
+the setting it kept.
 """
 
 from __future__ import annotations
@@ -94,7 +101,8 @@ def report_table(experiment: Experiment, results: list[dict]) -> tuple[str, str]
             row = [dataset, model] + ([label] if kind != "seeds" else [])
             if kind == "generalisation":
                 row.append(f"{m[0]['test_rotation_deg']:g}")
-            row += [_pm([x["mse"] for x in m]), _pm([x["cv_mse"] for x in m]), n,
+            row += [_pm([x["mse"] for x in m]), _pm([x["cv_mse"] for x in m]),
+                    _pm([x["mse_r2"] for x in m]), _pm([x["mse"] / x["cv_mse"] for x in m]), n,
                     _study_mse(dataset, model)]
             rows.append(row)
         elif kind == "rollout":
@@ -111,13 +119,13 @@ def report_table(experiment: Experiment, results: list[dict]) -> tuple[str, str]
                              _pm([x["rollouts"][name]["mse_full_r2"] for x in m]),
                              _pm([x["rollouts"][name]["mse_full_r2"]
                                   / x["rollouts"][name]["cv_mse_full_r2"] for x in m]), n])
-    ours, cv = "ours: test MSE", "constant velocity MSE"
+    ours = ["ours: test MSE", "constant velocity MSE", "ours: test MSE (r^2)", "ours / CV"]
     headers = {
-        "sweep": ["dataset", "model", experiment.sweep or "value", ours, cv, "seeds",
+        "sweep": ["dataset", "model", experiment.sweep or "value", *ours, "seeds",
                   "study: test MSE (its setting)"],
-        "seeds": ["dataset", "model", ours, cv, "seeds", "study: test MSE"],
+        "seeds": ["dataset", "model", *ours, "seeds", "study: test MSE"],
         "generalisation": ["dataset", "model", "trained on rotations <= (deg)",
-                           "test rotation (deg)", ours, cv, "seeds",
+                           "test rotation (deg)", *ours, "seeds",
                            "study: test MSE (in distribution)"],
         "rollout": ["dataset", "model", "single-step test MSE", "rollout MSE@10 (r^2)",
                     "rollout MSE full (r^2)", "CV rollout MSE full (r^2)", "seeds",
@@ -131,7 +139,9 @@ def report_table(experiment: Experiment, results: list[dict]) -> tuple[str, str]
                    "shown. r: vessel radii.",
     }
     note = notes.get(kind, "Test MSE: one teacher-forced step, clot nodes, scaled [-1, 1] "
-                           "coordinates (the study's metric). Mean ± sample std over seeds.")
+                           "coordinates (the study's metric); (r^2): the same in vessel radii "
+                           "squared; ours / CV: against extrapolating the current velocity "
+                           "(< 1 beats it). Mean ± sample std over seeds.")
     return markdown_table(headers[kind], rows), note
 
 
@@ -148,8 +158,36 @@ def _plot_sweep(experiment: Experiment, groups: dict, path: pathlib.Path) -> Non
         stats = [mean_std(v) for _, v in pts]
         ax.errorbar(xs, [s[0] for s in stats], yerr=[s[1] for s in stats], marker="o",
                     capsize=3, label=f"{model} ({dataset})")
+    for dataset, cvs in _cv_by_dataset(groups).items():
+        ax.axhline(float(np.mean(cvs)), color="k", ls="--", lw=1,
+                   label=f"constant velocity ({dataset})")
     _save_log_plot(fig, ax, path, experiment.title, experiment.sweep
                    or "trained on rotations up to (deg)", "test MSE (scaled coordinates)", 8)
+
+
+def _cv_by_dataset(groups: dict) -> dict[str, list[float]]:
+    out: dict[str, list[float]] = {}
+    for (dataset, _, _), runs in groups.items():
+        out.setdefault(dataset, []).extend(r["metrics"]["cv_mse"] for r in runs)
+    return out
+
+
+def _plot_seeds(experiment: Experiment, groups: dict, path: pathlib.Path) -> None:
+    """Test MSE per model and dataset (mean, one-std error bar, every seed as a dot), with the
+    constant-velocity MSE of the same test windows as a dashed line."""
+    fig, ax = plt.subplots(figsize=(6, 4))
+    keys = list(groups)
+    for i, key in enumerate(keys):
+        v = [r["metrics"]["mse"] for r in groups[key]]
+        m, s = mean_std(v)
+        ax.bar(i, m, yerr=s, capsize=4, color=f"C{i % 10}", alpha=0.7)
+        ax.plot([i] * len(v), v, "k.", ms=4)
+    cvs = _cv_by_dataset(groups)
+    for dataset, values in cvs.items():
+        ax.axhline(float(np.mean(values)), color="k", ls="--", lw=1,
+                   label=f"constant velocity ({dataset})")
+    ax.set_xticks(range(len(keys)), [f"{model}\n{dataset}" for dataset, model, _ in keys])
+    _save_log_plot(fig, ax, path, experiment.title, "", "test MSE (scaled coordinates)", 8)
 
 
 def _plot_rollouts(experiment: Experiment, groups: dict, path: pathlib.Path) -> None:
@@ -199,6 +237,9 @@ def write_report(experiment: Experiment, scale: str, results: list[dict],
     if experiment.kind in ("sweep", "generalisation"):
         _plot_sweep(experiment, groups, out / "sweep.png")
         files.append(out / "sweep.png")
+    if experiment.kind == "seeds":
+        _plot_seeds(experiment, groups, out / "test_mse.png")
+        files.append(out / "test_mse.png")
     if experiment.kind in ("rollout", "ladder"):
         _plot_rollouts(experiment, groups, out / "rollout_error.png")
         files.append(out / "rollout_error.png")
