@@ -10,6 +10,14 @@ builds the graph from the positions and runs the model, as one rollout step does
 * ``model_ms``: median time of the model alone on a precomputed graph;
 * ``max_degree``: the largest real neighbour count before the cap (graph density check).
 
+With ``--step`` the learned step of a rollout (:func:`thrombojax.simulator.step.make_step`:
+graph + model + integration, one jitted call) is timed twice per node count: on the dense
+radius search and on the cell grid sized from the two input frames
+(:func:`thrombojax.simulator.grid_step.allocate_grid`; ``grid: none`` where it does not pay).
+Reported per search: ``compile_s``, ``graph_ms`` (the graph alone), ``step_ms`` (median
+of ``--repeats`` calls after compilation), ``overflow``, the largest output difference from the
+dense step and ``ratio`` = grid ``step_ms`` / dense ``step_ms``.
+
 Inputs are synthetic: a clot-like blob inside a tube of wall nodes in scaled [-1, 1]
 coordinates, so radius graphs are about as dense as in the study (most nodes hit the cap of 32).
 The header prints device, versions, date and the machine load (``os.getloadavg``), because
@@ -18,7 +26,7 @@ timings on a shared machine are only comparable at equal load.
 Usage::
 
     python benchmarks/models.py [--models mgn transolver erwin] [--nodes 977 2048]
-                                [--repeats 10] [--tiny] [--out results.json]
+                                [--repeats 10] [--tiny] [--step] [--out results.json]
 """
 
 from __future__ import annotations
@@ -36,9 +44,12 @@ import numpy as np
 
 from thrombojax.eval.tables import environment
 from thrombojax.models import MODEL_NAMES, count_params, create_model, get_config
+from thrombojax.models.registry import identity_stats
+from thrombojax.simulator.grid_step import allocate_grid
+from thrombojax.simulator.step import make_step
 from thrombojax.types import ModelInput, NodeType
 
-__all__ = ["synthetic_inputs", "bench_model", "main"]
+__all__ = ["synthetic_inputs", "bench_model", "bench_step", "main"]
 
 
 def synthetic_inputs(n_nodes: int, *, clot_fraction: float = 0.3, seed: int = 0) -> ModelInput:
@@ -110,20 +121,45 @@ def bench_model(name: str, n_nodes: int, *, tiny: bool = False, repeats: int = 1
     }
 
 
-def main(argv: list[str] | None = None) -> int:
-    """Run the benchmark and print a table (and write JSON with ``--out``)."""
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    default_models = [m for m in MODEL_NAMES if m != "constant_velocity"]
-    parser.add_argument("--models", nargs="+", default=default_models, choices=MODEL_NAMES)
-    parser.add_argument("--nodes", nargs="+", type=int, default=[977, 2048])
-    parser.add_argument("--repeats", type=int, default=10, help="timed runs (median reported)")
-    parser.add_argument("--tiny", action="store_true", help="tiny configs (smoke test)")
-    parser.add_argument("--out", help="write the results as JSON to this file")
-    args = parser.parse_args(argv)
+def bench_step(name: str, n_nodes: int, *, tiny: bool = False, repeats: int = 5) -> list[dict]:
+    """Time the learned step (graph + forward) on the dense search and on the cell grid.
 
-    env = environment()
-    for key, value in env.items():
-        print(f"# {key}: {value}")
+    Returns:
+        One dict per search (``"dense"``, then ``"grid"``): see the module docstring.
+    """
+    model = create_model(name, get_config(name, tiny=tiny))
+    inputs = synthetic_inputs(n_nodes)
+    x_cur = np.asarray(inputs.positions)
+    state = (x_cur - np.asarray(inputs.velocity), x_cur, np.asarray(inputs.node_type),
+             np.ones(n_nodes, bool))
+    dense = make_step(model)
+    gridded = allocate_grid(dense, np.stack(state[:2]), state[2])
+    stats = identity_stats()
+    params = dense.init(jax.random.key(0), *state)
+    rows, ref = [], None
+    for label, step in (("dense", dense), ("grid", gridded)):
+        t0 = time.perf_counter()
+        compiled = jax.jit(step).lower(params, stats, *state).compile()
+        compile_s = time.perf_counter() - t0
+        out = compiled(params, stats, *state)
+        ref = out.output if ref is None else ref
+        graph_fn = jax.jit(step.build_graph)
+        step_in = step.inputs(stats, *state)
+        rows.append({
+            "model": name, "nodes": n_nodes, "search": label,
+            "grid": None if step.grid is None else str(step.grid),
+            "compile_s": round(compile_s, 3),
+            "graph_ms": round(_median_ms(graph_fn, step_in, repeats=repeats), 1),
+            "step_ms": round(_median_ms(compiled, params, stats, *state, repeats=repeats), 1),
+            "overflow": bool(out.overflow),
+            "max_abs_diff": float(jnp.max(jnp.abs(out.output - ref))),
+            "load_avg_1": round(os.getloadavg()[0], 2),
+        })
+    rows[1]["ratio"] = round(rows[1]["step_ms"] / rows[0]["step_ms"], 3)
+    return rows
+
+
+def _main_forward(args) -> list[dict]:
     cols = ["model", "nodes", "params", "compile_s", "forward_ms", "model_ms", "max_degree"]
     print(" | ".join(cols))
     rows = []
@@ -132,6 +168,39 @@ def main(argv: list[str] | None = None) -> int:
             row = bench_model(name, n, tiny=args.tiny, repeats=args.repeats)
             rows.append(row)
             print(" | ".join(str(row[c]) for c in cols), flush=True)
+    return rows
+
+
+def _main_step(args) -> list[dict]:
+    cols = ["model", "nodes", "search", "compile_s", "graph_ms", "step_ms", "overflow",
+            "max_abs_diff", "load_avg_1", "ratio", "grid"]
+    print(" | ".join(cols))
+    rows = []
+    for name in args.models:
+        for n in args.nodes:
+            for row in bench_step(name, n, tiny=args.tiny, repeats=args.repeats):
+                rows.append(row)
+                print(" | ".join(str(row.get(c, "")) for c in cols), flush=True)
+    return rows
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the benchmark and print a table (and write JSON with ``--out``)."""
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    default_models = [m for m in MODEL_NAMES if m != "constant_velocity"]
+    parser.add_argument("--models", nargs="+", default=default_models, choices=MODEL_NAMES)
+    parser.add_argument("--nodes", nargs="+", type=int, default=[977, 2048])
+    parser.add_argument("--repeats", type=int, default=10, help="timed runs (median reported)")
+    parser.add_argument("--tiny", action="store_true", help="tiny configs (smoke test)")
+    parser.add_argument("--step", action="store_true",
+                        help="time the learned step (graph + forward), dense vs cell grid")
+    parser.add_argument("--out", help="write the results as JSON to this file")
+    args = parser.parse_args(argv)
+
+    env = environment()
+    for key, value in env.items():
+        print(f"# {key}: {value}")
+    rows = _main_step(args) if args.step else _main_forward(args)
     env["load_avg_after"] = [round(x, 2) for x in os.getloadavg()]
     print(f"# load_avg_after: {env['load_avg_after']}")
     if args.out:

@@ -36,6 +36,7 @@ def test_bench_cli_all_models(tmp_path, capsys):
         case = STUDY_CASES[r["case"]]
         assert r["n_nodes"] == 128 and r["timed_steps"] == 3 and r["extrapolated"]
         assert r["compile_s"] > 0 and r["rollout_s"] > 0 and r["finite"]
+        assert r["graph"] == "dense" and r["grid"] is None  # small clouds: no cell grid
         assert np.isclose(r["full_length_s"], r["per_step_s"] * case.full_frames)
         assert np.isclose(r["speedup_vs_abaqus"], case.abaqus_s / r["full_length_s"])
     table = (tmp_path / "bench.md").read_text()

@@ -58,6 +58,7 @@ _EXPORTS: dict[str, str] = {
     # the learned simulator
     "LearnedStep": "thrombojax.simulator.step",
     "make_step": "thrombojax.simulator.step",
+    "allocate_grid": "thrombojax.simulator.grid_step",
     "rollout": "thrombojax.simulator.rollout",
     "constant_velocity_rollout": "thrombojax.simulator.rollout",
     # training

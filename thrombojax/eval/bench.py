@@ -11,10 +11,14 @@ Timing does not need trained weights: the cost of a rollout depends on the archi
 the shapes only, so models are random-initialised from their study configs unless trained runs
 are given. Positions come from a dataset frame when one is given, else from a synthetic bent
 tube with a clot (same node counts, scaled [-1, 1]); the radius graphs are capped at
-``max_neighbors`` either way. Compile time is measured with ``jit(...).lower(...).compile()``;
-steady-state time is the median of ``repeats`` runs of the compiled rollout (synchronised with
-``block_until_ready``). The persistent compilation cache is switched off while compiling, so
-the compile time is a real compilation, not a cache read.
+``max_neighbors`` either way. Where the cell grid pays (full resolution), the radius graphs are
+built on it: its :class:`~thrombojax.graph.grid.GridSpec` is sized from the two given frames
+(:func:`thrombojax.simulator.grid_step.allocate_grid`) and grown and recompiled if the timed
+rollout overflows (``graph`` and ``grid`` in each result say which search ran). Compile time is
+measured with ``jit(...).lower(...).compile()``; steady-state time is the median of ``repeats``
+runs of the compiled rollout (synchronised with ``block_until_ready``). The persistent
+compilation cache is switched off while compiling, so the compile time is a real compilation,
+not a cache read.
 """
 
 from __future__ import annotations
@@ -46,6 +50,7 @@ from thrombojax.models.registry import (
 )
 from thrombojax.sim.generate import simulate
 from thrombojax.sim.presets import get_preset
+from thrombojax.simulator.grid_step import allocate_grid, run_checked
 from thrombojax.simulator.rollout import as_step, rollout_jit
 from thrombojax.simulator.step import make_step
 from thrombojax.train.guards import warn_large_cpu_cases
@@ -131,26 +136,37 @@ def synthetic_cloud(n_nodes: int, *, clot_fraction: float = 0.3, seed: int = 0):
 
 
 def time_rollout(model: Surrogate, params: dict, stats: TargetStats, x_prev, x_cur, node_type,
-                 n_steps: int, *, repeats: int = 3) -> dict:
+                 n_steps: int, *, repeats: int = 3, grid: bool = True) -> dict:
     """Compile and time one rollout shape (the compiled rollout of the learned step).
+
+    With ``grid`` the step's radius graphs use the cell grid where it pays (module docstring);
+    a grid that overflows is grown and the rollout recompiled (the last compilation is timed).
 
     Returns:
         ``{"compile_s", "rollout_s" (median steady state), "rollout_min_s", "per_step_s",
-        "finite"}``.
+        "finite", "graph" ("grid" or "dense"), "grid" (the GridSpec or None)}``.
     """
     step = as_step(model)
     args = (params, stats, np.asarray(x_prev, np.float32), np.asarray(x_cur, np.float32),
             np.asarray(node_type, np.int32), np.ones(len(node_type), bool))
+    if grid and step.grid is None:
+        step = allocate_grid(step, np.stack([args[2], args[3]]), args[4])
+
+    def compile_and_run(s):
+        t = time.perf_counter()
+        compiled = rollout_jit.lower(s, *args, n_steps=int(n_steps)).compile()
+        compile_s = time.perf_counter() - t
+        traj, _, overflow = compiled(*args)
+        jax.block_until_ready(traj)  # warm-up run (allocations), not timed
+        return (compiled, compile_s, traj), overflow
+
     enabled = jax.config.jax_enable_compilation_cache
     jax.config.update("jax_enable_compilation_cache", False)  # time a real compilation
     try:
-        t = time.perf_counter()
-        compiled = rollout_jit.lower(step, *args, n_steps=int(n_steps)).compile()
-        compile_s = time.perf_counter() - t
+        (compiled, compile_s, traj), step = run_checked(compile_and_run, step,
+                                                        what="bench rollout")
     finally:
         jax.config.update("jax_enable_compilation_cache", enabled)
-    traj, _ = compiled(*args)
-    jax.block_until_ready(traj)  # warm-up run (allocations), not timed
     times = []
     for _ in range(max(1, repeats)):
         t = time.perf_counter()
@@ -158,7 +174,9 @@ def time_rollout(model: Surrogate, params: dict, stats: TargetStats, x_prev, x_c
         times.append(time.perf_counter() - t)
     med = statistics.median(times)
     return {"compile_s": compile_s, "rollout_s": med, "rollout_min_s": min(times),
-            "per_step_s": med / n_steps, "finite": bool(np.isfinite(np.asarray(traj)).all())}
+            "per_step_s": med / n_steps, "finite": bool(np.isfinite(np.asarray(traj)).all()),
+            "graph": "dense" if step.grid is None else "grid",
+            "grid": None if step.grid is None else str(step.grid)}
 
 
 def _solver_times(datasets: list, measure_presets: list[str]) -> dict[str, float]:
@@ -276,7 +294,9 @@ def bench(
     out = {"environment": environment(), "results": results, "note": (
         "Timing needs no trained weights: cost depends on architecture and shapes only. "
         "full_length_s = per-step time x all frames of the simulation (the study's x40/35, "
-        "x200/160 scaling); speed-ups compare it with the solver's time per simulation.")}
+        "x200/160 scaling); speed-ups compare it with the solver's time per simulation. "
+        "Radius graphs use the cell grid where it pays (full resolution; 'graph' and 'grid' "
+        "in bench.json), else the dense search.")}
     if out_dir is not None:
         out_dir = pathlib.Path(out_dir)
         atomic_write_text(out_dir / "bench.json", json.dumps(out, indent=2))

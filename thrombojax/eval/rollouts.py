@@ -4,6 +4,11 @@
 frames, :func:`thrombojax.study.skip_frames`) to the end, on the full cloud or on a fixed seeded
 node subset, with the constant-velocity baseline and the ground truth measured beside it (MSE per
 step, clot centroid error, fraction of clot nodes outside the vessel).
+
+Full-resolution clouds roll out on the cell grid: the step's
+:class:`~thrombojax.graph.grid.GridSpec` is sized from the simulation's own frames
+(:func:`thrombojax.simulator.grid_step.allocate_grid`; only buffer sizes, never the result, depend
+on them) and re-allocated when the rollout overflows; small clouds keep the dense search.
 """
 
 from __future__ import annotations
@@ -24,8 +29,10 @@ from thrombojax.eval.metrics import (
 from thrombojax.eval.uncertainty import uncertainty_summary
 from thrombojax.models.registry import Surrogate
 from thrombojax.simulator.ensemble import ensemble_rollout
+from thrombojax.simulator.grid_step import allocate_grid
 from thrombojax.simulator.guard_set import build_guards
 from thrombojax.simulator.rollout import (
+    as_step,
     constant_velocity_rollout,
     guarded_unroll,
     rollout_with_corrections,
@@ -130,7 +137,10 @@ def rollout_simulation(
         corrections = {} if ens.aux is None else {
             k: np.asarray(v).max(axis=0) for k, v in ens.aux.items()}
     else:
-        traj, corrections = rollout_with_corrections(model, params, stats, x_prev, x0, sub_type,
+        step = as_step(model)
+        if step.grid is None:  # the grid where it pays, sized from the frames rolled out
+            step = allocate_grid(step, positions[t0 - 1:t0 + 1 + n_steps][:, idx], sub_type)
+        traj, corrections = rollout_with_corrections(step, params, stats, x_prev, x0, sub_type,
                                                      mask, n_steps, guards=guards)
         pred = np.asarray(traj)
     true = positions[t0 + 1:t0 + 1 + n_steps][:, idx]

@@ -177,6 +177,7 @@ def single_step_errors(
     Returns:
         ``[n_windows]`` MSE per window ``t = max(skip, 1) .. T - 2``.
     """
+    step.require_dense("single-step evaluation")
     times = np.arange(max(skip, 1), positions.shape[0] - 1)
     if times.size == 0:
         raise ConfigError(f"no window with skip={skip} in a simulation of {positions.shape[0]} "

@@ -59,6 +59,7 @@ __all__ = [
     "edge_mask",
     "edge_displacements",
     "to_graphs_tuple",
+    "graph_overflow",
 ]
 
 AUTO_GRID_MIN_NODES: int = 4096
@@ -146,6 +147,20 @@ def radius_graph(
         ids, counts, overflow = grid_search(positions, r, max_neighbors, mask, loop, grid)
         return NeighborList(indices=ids, counts=counts, overflow=overflow)
     raise ConfigError(f"unknown radius_graph method {method!r}: use 'auto', 'dense' or 'grid'")
+
+
+def graph_overflow(graph) -> jax.Array:
+    """``[]`` bool: whether any :class:`NeighborList` inside the pytree ``graph`` overflowed.
+
+    Works on any model graph (a neighbour list, Erwin's tree plus neighbour list, an empty
+    graph: False). Jittable.
+    """
+    flags = [
+        jnp.any(leaf.overflow)
+        for leaf in jax.tree_util.tree_leaves(graph, is_leaf=lambda x: isinstance(x, NeighborList))
+        if isinstance(leaf, NeighborList)
+    ]
+    return jnp.any(jnp.stack(flags)) if flags else jnp.zeros((), bool)
 
 
 def senders_receivers(nbrs: NeighborList) -> tuple[jax.Array, jax.Array, jax.Array]:

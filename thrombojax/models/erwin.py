@@ -54,6 +54,7 @@ from flax import struct
 
 from thrombojax.errors import ConfigError
 from thrombojax.graph.balltree import BallTree, build_balltree, level_sizes
+from thrombojax.graph.grid import GridSpec
 from thrombojax.graph.neighbors import NeighborList, radius_graph
 from thrombojax.models.layers import MPNNEmbedding, RMSNorm, SwiGLU
 from thrombojax.models.registry import ErwinConfig, FlaxSurrogate
@@ -91,19 +92,19 @@ class ErwinGraph:
     neighbors: NeighborList
 
 
-def build_erwin_graph(config: ErwinConfig, inputs: ModelInput) -> ErwinGraph:
+def build_erwin_graph(config: ErwinConfig, inputs: ModelInput, grid: GridSpec | None = None):
     """Ball tree (plus rotated trees) and radius graph of ``inputs.positions`` (jittable).
 
     Args:
         config: the model config (``strides``, ``ball_sizes``, ``rotate``, ``radius``,
             ``max_neighbors``).
         inputs: the sample; padded rows (``mask`` False) enter neither the tree nor the graph.
+        grid: cell grid of the radius graph, used where it pays (static; None: dense).
     Returns:
         The :class:`ErwinGraph`.
     """
-    nbrs = radius_graph(
-        inputs.positions, config.radius, config.max_neighbors, mask=inputs.mask, loop=True
-    )
+    nbrs = radius_graph(inputs.positions, config.radius, config.max_neighbors,
+                        mask=inputs.mask, loop=True, grid=grid)
     tree = build_balltree(
         inputs.positions, mask=inputs.mask, strides=tuple(config.strides),
         ball_sizes=tuple(config.ball_sizes), rotate=float(config.rotate),
@@ -390,6 +391,6 @@ class ErwinSurrogate(FlaxSurrogate):
     module_cls: ClassVar[type[nn.Module]] = Erwin
     self_loops: ClassVar[bool] = True
 
-    def build_graph(self, inputs: ModelInput) -> ErwinGraph:
+    def build_graph(self, inputs: ModelInput, grid: GridSpec | None = None) -> ErwinGraph:
         """Ball tree, rotated trees and radius graph of ``inputs.positions`` (jittable)."""
-        return build_erwin_graph(self.config, inputs)
+        return build_erwin_graph(self.config, inputs, grid)

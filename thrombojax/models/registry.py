@@ -10,11 +10,12 @@ batch with ``jax.vmap``) and all jittable with the surrogate as a static argumen
 
 ``out`` is the normalised acceleration ``(a - mean) / std`` (:class:`thrombojax.types.TargetStats`);
 padded nodes' outputs are finite but arbitrary and must be masked downstream. ``graph`` is any
-pytree. The shipped graphs are built with the dense radius search, which is exact and has no
-buffer that can overflow (each node keeps its ``max_neighbors`` nearest within the radius, the
-model's definition, like torch_cluster's cap); the cell-grid search, whose cells can overflow, is
-a graph-layer tool with its own flag and host-side re-allocation
-(:func:`thrombojax.graph.neighbors.radius_graph_checked`), not part of this contract.
+pytree. Each node keeps its ``max_neighbors`` nearest within the radius (the model's definition,
+like torch_cluster's cap). ``build_graph(inputs, grid=spec)`` passes a static
+:class:`~thrombojax.graph.grid.GridSpec` to the radius search, whose ``"auto"`` method then uses
+the cell grid where it pays (large clouds) and the exact dense search elsewhere; the grid's
+``overflow`` flag stays in the graph (:func:`thrombojax.graph.neighbors.graph_overflow`) and the
+learned step returns it (:mod:`thrombojax.simulator.grid_step` re-allocates on the host).
 
 Config defaults are the study's architecture hyper-parameters; configs hold architecture only
 (the study's batch sizes and learning rates are training settings: :mod:`thrombojax.study`).
@@ -39,6 +40,7 @@ import jax.numpy as jnp
 from flax import struct
 
 from thrombojax.errors import ConfigError
+from thrombojax.graph.grid import GridSpec
 from thrombojax.graph.neighbors import radius_graph
 from thrombojax.types import ModelInput, TargetStats
 
@@ -198,7 +200,7 @@ class Surrogate(Protocol):
     name: str
     config: Any
 
-    def build_graph(self, inputs: ModelInput) -> Any: ...
+    def build_graph(self, inputs: ModelInput, grid: GridSpec | None = None) -> Any: ...
     def init(self, rng: jax.Array, inputs: ModelInput, graph: Any) -> dict: ...
     def apply(self, params: dict, inputs: ModelInput, graph: Any, *, train: bool = False,
               rng: jax.Array | None = None) -> jax.Array: ...
@@ -230,11 +232,12 @@ class FlaxSurrogate:
         """The Flax module built from the config."""
         return self.module_cls(config=self.config)
 
-    def build_graph(self, inputs: ModelInput) -> Any:
-        """Radius graph of the real nodes: a ``NeighborList`` (``indices [N, K]``, ``counts``)."""
+    def build_graph(self, inputs: ModelInput, grid: GridSpec | None = None) -> Any:
+        """Radius graph of the real nodes: a ``NeighborList`` (``indices [N, K]``, ``counts``);
+        the cell ``grid`` (static) is used where it pays, else the dense search."""
         cfg = self.config
         return radius_graph(inputs.positions, cfg.radius, cfg.max_neighbors, mask=inputs.mask,
-                            loop=self.self_loops)
+                            loop=self.self_loops, grid=grid)
 
     def init(self, rng: jax.Array, inputs: ModelInput, graph: Any) -> dict:
         """Initialise the variables ``{"params": ...}`` (compiled: faster than eager Flax init)."""
@@ -274,7 +277,7 @@ class ConstantVelocity:
     name: str
     config: ConstantVelocityConfig
 
-    def build_graph(self, inputs: ModelInput) -> EmptyGraph:
+    def build_graph(self, inputs: ModelInput, grid: GridSpec | None = None) -> EmptyGraph:
         return EmptyGraph()
 
     def init(self, rng: jax.Array, inputs: ModelInput, graph: Any) -> dict:

@@ -7,6 +7,11 @@
   per-step corrections :func:`rollout_with_corrections` returns.
 - :func:`constant_velocity_rollout`: the baseline every error is reported beside, the same rollout
   with the :class:`~thrombojax.models.registry.ConstantVelocity` surrogate (zero acceleration).
+
+A learned step with a cell grid (:mod:`thrombojax.simulator.grid_step`) is rolled out with its
+overflow flag accumulated over every step (:data:`rollout_jit` returns it); :func:`rollout` and
+:func:`rollout_with_corrections` grow the grid and roll out again when it overflowed, or raise.
+:func:`unroll` and :func:`guarded_unroll` do not return the flag, so they refuse such a step.
 """
 
 from __future__ import annotations
@@ -17,6 +22,7 @@ import numpy as np
 
 from thrombojax.errors import ConfigError
 from thrombojax.models.registry import Surrogate, create_model, identity_stats
+from thrombojax.simulator.grid_step import DEFAULT_MAX_REGROWS, run_checked
 from thrombojax.simulator.guard_set import GuardSet
 from thrombojax.simulator.step import LearnedStep, make_step
 from thrombojax.types import TargetStats
@@ -73,48 +79,52 @@ def unroll(
         ``(positions [n_steps, n_nodes, 3], outputs [n_steps, n_nodes, 3])``: s_{t0+1} ...
         s_{t0+n_steps} and the raw model outputs of each step.
     """
-
-    positions, outputs, _ = _scan(step, params, stats, x_prev, x_cur, node_type, mask, n_steps,
-                                  train=train, rng=rng)
+    step.require_dense("unroll")
+    positions, outputs, _, _ = _scan(step, params, stats, x_prev, x_cur, node_type, mask,
+                                     n_steps, train=train, rng=rng)
     return positions, outputs
 
 
 def _scan(step, params, stats, x_prev, x_cur, node_type, mask, n_steps, *, train=False,
           rng=None, guards: GuardSet | None = None):
-    """The scan behind :func:`unroll` and the rollout: ``(positions, outputs, corrections)``."""
+    """The scan behind :func:`unroll` and the rollout: ``(positions, outputs, corrections,
+    overflow)``, ``overflow`` True if the graph of any step overflowed."""
 
     def body(carry, i):
-        prev, cur = carry
+        prev, cur, overflow = carry
         key = None if rng is None else jax.random.fold_in(rng, i)
         out = step(params, stats, prev, cur, node_type, mask, train=train, rng=key)
         nxt, corrections = (out.positions, {}) if guards is None else guards.apply(out.positions)
-        return (cur, nxt), (nxt, out.output, corrections)
+        return (cur, nxt, overflow | out.overflow), (nxt, out.output, corrections)
 
-    _, (positions, outputs, corrections) = jax.lax.scan(body, (x_prev, x_cur),
-                                                        jnp.arange(n_steps))
-    return positions, outputs, corrections
+    (_, _, overflow), (positions, outputs, corrections) = jax.lax.scan(
+        body, (x_prev, x_cur, jnp.zeros((), bool)), jnp.arange(n_steps))
+    return positions, outputs, corrections, overflow
 
 
 def guarded_unroll(step, params, stats, x0_prev, x0, node_type, mask, n_steps, context):
     """A member rollout with guards for :func:`thrombojax.simulator.ensemble.ensemble_rollout`
     (its ``rollout_fn``; ``context`` is the :class:`GuardSet`): ``(positions, corrections)``."""
-    positions, _, corrections = _scan(step, params, stats, x0_prev, x0, node_type, mask, n_steps,
-                                      guards=context)
+    step.require_dense("an ensemble rollout")
+    positions, _, corrections, _ = _scan(step, params, stats, x0_prev, x0, node_type, mask,
+                                         n_steps, guards=context)
     return positions, corrections
 
 
 def _rollout_impl(step, params, stats, x0_prev, x0, node_type, mask, n_steps, guards=None):
-    positions, _, corrections = _scan(step, params, stats, x0_prev, x0, node_type, mask,
-                                      n_steps, guards=guards)
-    return positions, corrections
+    positions, _, corrections, overflow = _scan(step, params, stats, x0_prev, x0, node_type, mask,
+                                                n_steps, guards=guards)
+    return positions, corrections, overflow
 
 
 rollout_jit = jax.jit(_rollout_impl, static_argnames=("step", "n_steps"))
 """The compiled rollout ``(step, params, stats, x0_prev, x0, node_type, mask, n_steps, guards)
--> (trajectory [n_steps, n_nodes, 3], corrections {guard: [n_steps, n_nodes]})``; ``guards``
-is a :class:`~thrombojax.simulator.guard_set.GuardSet` or ``None`` (then ``corrections`` is
-empty). One compilation per (step, shapes, n_steps, guard switches).
-``rollout_jit._cache_size()`` counts the compilations."""
+-> (trajectory [n_steps, n_nodes, 3], corrections {guard: [n_steps, n_nodes]}, overflow [])``;
+``guards`` is a :class:`~thrombojax.simulator.guard_set.GuardSet` or ``None`` (then
+``corrections`` is empty); ``overflow`` is True if the cell grid of any step overflowed (the
+trajectory is then unreliable: :func:`rollout_with_corrections` re-allocates). One
+compilation per (step, shapes, n_steps, guard switches); ``rollout_jit._cache_size()`` counts
+them."""
 
 
 def rollout(
@@ -128,6 +138,7 @@ def rollout(
     n_steps: int,
     *,
     guards: GuardSet | None = None,
+    max_regrows: int = DEFAULT_MAX_REGROWS,
 ) -> jax.Array:
     """Autoregressive rollout as one compiled ``jax.lax.scan`` over the learned step.
 
@@ -144,12 +155,15 @@ def rollout(
         node_type: ``[n_nodes]`` NodeType values. mask: ``[n_nodes]`` real-node mask.
         n_steps: number of predicted frames (static).
         guards: physics guards applied after every step (``None``: the model alone).
+        max_regrows: a step with a cell grid: re-allocations of the grid allowed when it
+            overflowed (each grows it: :func:`thrombojax.graph.grow`) before
+            :class:`~thrombojax.errors.CapacityOverflowError` is raised.
     Returns:
         ``[n_steps, n_nodes, 3]`` predicted s_{t0+1} ... s_{t0+n_steps} (device array); vessel and
         padded nodes equal ``x0`` exactly.
     """
     return rollout_with_corrections(model, params, stats, x0_prev, x0, node_type, mask, n_steps,
-                                    guards=guards)[0]
+                                    guards=guards, max_regrows=max_regrows)[0]
 
 
 def rollout_with_corrections(
@@ -163,8 +177,12 @@ def rollout_with_corrections(
     n_steps: int,
     *,
     guards: GuardSet | None = None,
+    max_regrows: int = DEFAULT_MAX_REGROWS,
 ) -> tuple[jax.Array, dict[str, jax.Array]]:
     """:func:`rollout` that also returns how far each guard moved every node at every step.
+
+    A step with a cell grid is rolled out again on a grown grid whenever any step overflowed
+    (:func:`thrombojax.simulator.grid_step.run_checked`); without one the flag is never read.
 
     Returns:
         ``(trajectory [n_steps, n_nodes, 3], {guard name: correction [n_steps, n_nodes]})``
@@ -173,11 +191,14 @@ def rollout_with_corrections(
     step = as_step(model)
     if int(n_steps) < 1:
         raise ConfigError(f"rollout: n_steps must be >= 1, got {n_steps}")
-    return rollout_jit(
-        step, params, stats,
-        jnp.asarray(x0_prev, jnp.float32), jnp.asarray(x0, jnp.float32),
-        jnp.asarray(node_type, jnp.int32), jnp.asarray(mask, bool), int(n_steps), guards,
-    )
+    args = (params, stats, jnp.asarray(x0_prev, jnp.float32), jnp.asarray(x0, jnp.float32),
+            jnp.asarray(node_type, jnp.int32), jnp.asarray(mask, bool))
+
+    def run(s: LearnedStep):
+        traj, corrections, overflow = rollout_jit(s, *args, int(n_steps), guards)
+        return (traj, corrections), overflow
+
+    return run_checked(run, step, max_regrows=max_regrows, what="rollout")[0]
 
 
 def constant_velocity_rollout(

@@ -31,6 +31,15 @@ Wall features: ``make_step(model, wall_cutoff=c)`` (``c > 0``, scaled units) app
 clot node's input the distance and direction to its nearest vessel node
 (:func:`thrombojax.graph.wall_nodes.wall_node_features`), so the model knows where the wall is
 even when no vessel node is among its graph neighbours.
+
+Full resolution: ``make_step(model, grid=spec)`` carries a static cell-grid
+:class:`~thrombojax.graph.grid.GridSpec` to the model's radius search, which uses it where it pays
+(``N >= AUTO_GRID_MIN_NODES`` and fewer candidates than the dense search,
+:func:`thrombojax.graph.neighbors.radius_graph`) and the dense search elsewhere (small clouds are
+unchanged bit for bit). :attr:`StepOutput.overflow` reports a grid buffer that was too small; the
+host sizes the spec from the data and re-allocates on overflow
+(:mod:`thrombojax.simulator.grid_step`). Consumers that do not check the flag refuse a step with
+a grid (:meth:`LearnedStep.require_dense`).
 """
 
 from __future__ import annotations
@@ -44,6 +53,8 @@ from flax import struct
 
 from thrombojax.errors import ConfigError
 from thrombojax.graph.frame import FRAMES, VesselFrame, vessel_frame
+from thrombojax.graph.grid import GridSpec
+from thrombojax.graph.neighbors import graph_overflow
 from thrombojax.graph.wall_nodes import wall_node_features
 from thrombojax.models.registry import Surrogate
 from thrombojax.types import ModelInput, TargetStats, clot_mask
@@ -117,10 +128,13 @@ class StepOutput:
         positions: ``[n_nodes, 3]`` s_{t+1} (vessel and padded nodes equal s_t exactly).
         output: ``[n_nodes, 3]`` the raw model output (normalised acceleration), what the
             training loss compares with the normalised target.
+        overflow: ``[]`` bool, True if a cell-grid buffer of the graph overflowed (the graph,
+            hence the step, may be wrong: re-allocate); always False without a grid.
     """
 
     positions: jax.Array
     output: jax.Array
+    overflow: jax.Array
 
 
 @dataclasses.dataclass(frozen=True)
@@ -135,11 +149,13 @@ class LearnedStep:
         frame: ``"global"`` (the dataset's axes) or ``"vessel"`` (the rigid vessel's frame,
             see the module docstring).
         wall_cutoff: cutoff of the wall features in scaled units (0: no wall features).
+        grid: cell grid of the model's radius graph, in the step's frame (None: dense search).
     """
 
     model: Surrogate
     frame: str = "global"
     wall_cutoff: float = 0.0
+    grid: GridSpec | None = None
 
     def __post_init__(self) -> None:
         if self.frame not in FRAMES:
@@ -153,6 +169,23 @@ class LearnedStep:
     def name(self) -> str:
         """The surrogate's registry name."""
         return self.model.name
+
+    def with_grid(self, grid: GridSpec | None) -> LearnedStep:
+        """The same step with another cell grid (None: the dense search)."""
+        return dataclasses.replace(self, grid=grid)
+
+    def require_dense(self, what: str) -> None:
+        """Raise :class:`ConfigError` if the step has a grid: ``what`` drops the overflow flag."""
+        if self.grid is not None:
+            raise ConfigError(f"{what} does not check the cell grid's overflow flag; use a "
+                              f"step without a grid (step.with_grid(None)), or the checked "
+                              f"rollout (thrombojax.simulator.rollout.rollout)")
+
+    def build_graph(self, inputs: ModelInput):
+        """The model's graph of ``inputs``, on the cell grid where the step has one and it pays."""
+        if self.grid is None:  # surrogates written before the grid keep their one-argument call
+            return self.model.build_graph(inputs)
+        return self.model.build_graph(inputs, grid=self.grid)
 
     def frame_of(
         self, x_cur: jax.Array, node_type: jax.Array, mask: jax.Array
@@ -212,13 +245,13 @@ class LearnedStep:
         """
         frame = self.frame_of(x_cur, node_type, mask)
         inputs = self._inputs(frame, stats.velocity_std, x_prev, x_cur, node_type, mask)
-        graph = self.model.build_graph(inputs)
+        graph = self.build_graph(inputs)
         out = self.model.apply(params, inputs, graph, train=train, rng=rng)
         accel = stats.denormalize(out)
         if frame is not None:
             accel = frame.vectors_to_global(accel)
         x_next = integrate(x_prev, x_cur, accel, node_type, mask)
-        return StepOutput(positions=x_next, output=out)
+        return StepOutput(positions=x_next, output=out, overflow=graph_overflow(graph))
 
     def init(
         self, rng: jax.Array, x_prev: jax.Array, x_cur: jax.Array, node_type: jax.Array,
@@ -233,10 +266,11 @@ class LearnedStep:
 def _init(step: LearnedStep, rng, x_prev, x_cur, node_type, mask) -> dict:
     inputs = step._inputs(step.frame_of(x_cur, node_type, mask), 1.0, x_prev, x_cur, node_type,
                           mask)
-    return step.model.init(rng, inputs, step.model.build_graph(inputs))
+    return step.model.init(rng, inputs, step.build_graph(inputs))
 
 
-def make_step(model: Surrogate, frame: str = "global", wall_cutoff: float = 0.0) -> LearnedStep:
+def make_step(model: Surrogate, frame: str = "global", wall_cutoff: float = 0.0,
+              grid: GridSpec | None = None) -> LearnedStep:
     """The learned simulator of a surrogate in ``frame``, with wall features when
-    ``wall_cutoff > 0`` (see the module docstring)."""
-    return LearnedStep(model=model, frame=frame, wall_cutoff=float(wall_cutoff))
+    ``wall_cutoff > 0`` and the cell ``grid`` where it pays (see the module docstring)."""
+    return LearnedStep(model=model, frame=frame, wall_cutoff=float(wall_cutoff), grid=grid)

@@ -68,6 +68,7 @@ def window_loss_terms(
         ``{"loss_sum", "mse_sum", "count"}``: squared errors summed over clot nodes and averaged
         over steps and x, y, z; the number of clot nodes.
     """
+    step.require_dense("the training loss")
     need = pushforward + k + 2
     if k < 1 or pushforward < 0 or frames.shape[0] < need:
         raise ValueError(f"k = {k} loss steps after {pushforward} push-forward steps need a "
