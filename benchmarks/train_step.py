@@ -5,7 +5,8 @@ Speed. Two long-lived worker processes, one under glibc's malloc and one with tc
 step (:func:`thrombojax.train.step.make_train_step`: graph, forward, backward, AdamW) of every
 case: the study's MeshGraphNet in its plain form (``factorised=False, slot_sum=False``), with
 each rewrite alone, with both, and factorised (the default) plus ``remat``; the study's Transolver
-with the plain and the split MPNN message layer; batch 1 (as the peer comparison of issue 17) at
+with the plain and the split MPNN message layer, and the split one plus ``remat``; the study's
+Erwin with and without ``remat``; batch 1 (as the peer comparison of issue 17) at
 977 (BendVessel) and 2,048 nodes (ClotEntry's sample). Per case a pair of workers is started
 (one process holding every case grew past this machine's memory under tcmalloc, which keeps
 what it frees) and the parent runs rounds alternating the two (glibc, tcmalloc, glibc, ...);
@@ -14,11 +15,13 @@ step time over all rounds, the minor page faults per step (``resource.getrusage(
 deltas around each step) and the ratio to the plain form under the same allocator.
 
 Memory. The compiled peak of the training step (``jax.jit(step).lower(...).compile()
-.memory_analysis()``: temporaries + arguments + outputs - aliased) per model and study batch
-(MeshGraphNet batch 8, Transolver 16) at both node counts, MeshGraphNet with and without
-``remat``; nothing is executed, so batches that do not fit in this machine's memory are
-reported too. Target of issue 17: the ClotEntry MeshGraphNet batch (8 x 2,048 nodes, K = 32)
-<= 8 GB.
+.memory_analysis()``: temporaries + arguments + outputs - aliased) per model at its study batch
+(:func:`thrombojax.study.training_defaults`: MeshGraphNet 8, Transolver 16, Erwin 8) and study
+config (:func:`thrombojax.models.registry.get_config` defaults) at both node counts, every model
+with and without ``remat`` (MeshGraphNet's plain form too); nothing is executed (only the
+parameters are initialised, on one sample), so batches that do not fit in this machine's memory
+are reported too. Target of issue 17: the ClotEntry MeshGraphNet batch (8 x 2,048 nodes,
+K = 32) <= 8 GB.
 
 Inputs are synthetic (``benchmarks/train.py``'s bent tube with a clot blob, scaled coordinates);
 the speed depends on the node count and the neighbour cap, not on the physics.
@@ -26,6 +29,7 @@ the speed depends on the node count and the neighbour cap, not on the physics.
 Usage::
 
     python benchmarks/train_step.py [--rounds 3] [--steps 2] [--sizes 977 2048]
+                                    [--variants NAME ...] [--skip-memory | --skip-speed]
                                     [--out benchmarks/results/train_step_cpu.md]
 """
 
@@ -47,6 +51,7 @@ import numpy as np
 
 from thrombojax.cli.allocator import find_tcmalloc
 from thrombojax.eval.tables import environment
+from thrombojax.models.erwin import ErwinSurrogate
 from thrombojax.models.meshgraphnet import MeshGraphNetSurrogate
 from thrombojax.models.registry import get_config
 from thrombojax.models.transolver import TransolverSurrogate
@@ -58,7 +63,8 @@ from thrombojax.types import TargetStats
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from train import synthetic_batch  # noqa: E402  (benchmarks/ is not a package)
 
-__all__ = ["VARIANTS", "variant_model", "train_step_of", "compiled_peak", "main"]
+__all__ = ["VARIANTS", "MEMORY_CASES", "REMAT_OF", "variant_model", "train_step_of",
+           "compiled_peak", "main"]
 
 VARIANTS: dict[str, tuple[str, dict, bool]] = {
     # name: (model, module options, remat)
@@ -69,8 +75,20 @@ VARIANTS: dict[str, tuple[str, dict, bool]] = {
     "mgn factorised + remat": ("mgn", {}, True),
     "transolver plain": ("transolver", {"split_messages": False}, False),
     "transolver split (default)": ("transolver", {}, False),
+    "transolver split + remat": ("transolver", {}, True),
+    "erwin (default)": ("erwin", {}, False),
+    "erwin + remat": ("erwin", {}, True),
 }
-PLAIN = {"mgn": "mgn plain", "transolver": "transolver plain"}
+PLAIN = {"mgn": "mgn plain", "transolver": "transolver plain", "erwin": "erwin (default)"}
+MEMORY_CASES: tuple[str, ...] = (
+    "mgn factorised (default)", "mgn factorised + remat", "mgn plain",
+    "transolver split (default)", "transolver split + remat", "erwin (default)", "erwin + remat",
+)
+"""The compiled-peak cases, each at its model's study batch."""
+REMAT_OF: dict[str, str] = {"mgn factorised + remat": "mgn factorised (default)",
+                            "transolver split + remat": "transolver split (default)",
+                            "erwin + remat": "erwin (default)"}
+"""Each ``remat`` case and the same variant without it (the peak ratio's denominator)."""
 
 
 class _Options:
@@ -91,11 +109,19 @@ class _Transolver(_Options, TransolverSurrogate):
     options: tuple = ()
 
 
+@dataclasses.dataclass(frozen=True)
+class _Erwin(_Options, ErwinSurrogate):
+    options: tuple = ()
+
+
+_CLASSES = {"mgn": _MGN, "transolver": _Transolver, "erwin": _Erwin}
+
+
 def variant_model(variant: str):
     """The surrogate of a :data:`VARIANTS` entry (study config)."""
     name, options, remat = VARIANTS[variant]
     config = get_config(name, **({"remat": True} if remat else {}))
-    cls = _MGN if name == "mgn" else _Transolver
+    cls = _CLASSES[name]
     return cls(name=name, config=config, options=tuple(sorted(options.items())))
 
 
@@ -174,7 +200,7 @@ def _speed(args, tcmalloc: str | None, out: list[str]) -> None:
     results = {name: [] for name in allocators}
     loads = {}
     for n in args.sizes:
-        for variant in VARIANTS:
+        for variant in args.variants:
             # one worker pair per case: tcmalloc keeps what it frees, so a process that ran
             # several 2,048-node cases grew past this machine's memory (OOM-killed)
             procs = {}
@@ -202,13 +228,13 @@ def _speed(args, tcmalloc: str | None, out: list[str]) -> None:
     for n in args.sizes:
         for name, rows in results.items():
             plain_ms = {}
-            for variant in VARIANTS:
+            for variant in args.variants:
                 mine = [x for x in rows if x["variant"] == variant and x["nodes"] == n]
                 ms = [x["ms"] for x in mine]
                 med = statistics.median(ms)
                 model = VARIANTS[variant][0]
-                if variant == PLAIN[model]:
-                    plain_ms[model] = med
+                if variant == PLAIN[model] or model not in plain_ms:
+                    plain_ms[model] = med  # (the first case of a model without its plain one)
                 out.append(f"| {model} | {n} | {variant} | {name} | {med:.0f} | "
                            f"{min(ms):.0f}-{max(ms):.0f} | "
                            f"{statistics.median(x['faults'] for x in mine):.0f} | "
@@ -219,15 +245,20 @@ def _speed(args, tcmalloc: str | None, out: list[str]) -> None:
 
 def _memory(args, out: list[str]) -> None:
     out += ["", "## Compiled peak memory of the training step (study batches, not executed)", "",
-            "| model | nodes | batch | variant | temporaries GB | peak GB | compile s |",
-            "|---|---|---|---|---|---|---|"]
-    cases = [("mgn factorised (default)", 8), ("mgn factorised + remat", 8), ("mgn plain", 8),
-             ("transolver split (default)", 16)]
+            "| model | nodes | batch | variant | temporaries GB | peak GB | vs no remat | "
+            "compile s |", "|---|---|---|---|---|---|---|---|"]
+    cases = [v for v in MEMORY_CASES if v in args.variants]
     for n in args.sizes:
-        for variant, batch in cases:
+        peaks = {}
+        for variant in cases:
+            model = VARIANTS[variant][0]
+            batch = int(training_defaults(model)["batch_size"])
             m = compiled_peak(variant, n, batch)
-            out.append(f"| {VARIANTS[variant][0]} | {n} | {batch} | {variant} | "
-                       f"{m['temp'] / 1e9:.2f} | {m['peak'] / 1e9:.2f} | {m['compile_s']:.0f} |")
+            peaks[variant] = m["peak"]
+            base = REMAT_OF.get(variant)
+            ratio = f"{m['peak'] / peaks[base]:.2f}" if base in peaks else ""
+            out.append(f"| {model} | {n} | {batch} | {variant} | {m['temp'] / 1e9:.2f} | "
+                       f"{m['peak'] / 1e9:.2f} | {ratio} | {m['compile_s']:.0f} |")
             print(out[-1], flush=True)
 
 
@@ -236,7 +267,10 @@ def main() -> None:
     parser.add_argument("--rounds", type=int, default=3)
     parser.add_argument("--steps", type=int, default=2, help="timed steps per case and round")
     parser.add_argument("--sizes", nargs="+", type=int, default=[977, 2048])
+    parser.add_argument("--variants", nargs="+", default=list(VARIANTS), choices=list(VARIANTS),
+                        help="cases to run (default: all)", metavar="NAME")
     parser.add_argument("--skip-memory", action="store_true")
+    parser.add_argument("--skip-speed", action="store_true")
     parser.add_argument("--out", default=None, help="markdown file to write")
     parser.add_argument("--worker", default=None, help=argparse.SUPPRESS)
     args = parser.parse_args()
@@ -250,7 +284,8 @@ def main() -> None:
     print("\n".join(out), flush=True)
     if not args.skip_memory:
         _memory(args, out)
-    _speed(args, tcmalloc, out)
+    if not args.skip_speed:
+        _speed(args, tcmalloc, out)
     out += ["", f"load (1, 5, 15 min) at the end: {[round(x, 2) for x in os.getloadavg()]}"]
     print(out[-1])
     if args.out:

@@ -36,7 +36,8 @@ Conventions where the references disagree or our setting differs (documented cho
   stacked Linear layers compose to one), self loops included as ``radius_graph(loop=True)``.
 - Ball sizes are clipped to the level size (static), so tiny clouds work.
 - Positions carry no gradient (the official code wraps them in ``no_grad``).
-- Blocks are scanned in pairs (``nn.scan``): compile time does not grow with depth.
+- Blocks are scanned in pairs (``nn.scan``): compile time does not grow with depth. The blocks
+  live in :mod:`thrombojax.models.erwin_blocks`; ``ErwinConfig.remat`` rematerialises them.
 - Head GELU is exact (erf); Dense kernels in this file use truncated normal std 0.02 and zero
   bias as the official code (the shared MPNN embedding keeps Flax defaults).
 """
@@ -56,7 +57,15 @@ from thrombojax.errors import ConfigError
 from thrombojax.graph.balltree import BallTree, build_balltree, level_sizes
 from thrombojax.graph.grid import GridSpec
 from thrombojax.graph.neighbors import NeighborList, radius_graph
-from thrombojax.models.layers import MPNNEmbedding, RMSNorm, SwiGLU
+from thrombojax.models.erwin_blocks import (
+    BallMSA,
+    ErwinBlock,
+    Stage,
+    ball_view,
+    dense,
+    masked_centres,
+)
+from thrombojax.models.layers import MPNNEmbedding
 from thrombojax.models.registry import ErwinConfig, FlaxSurrogate
 from thrombojax.types import ModelInput
 
@@ -69,13 +78,6 @@ __all__ = [
     "ErwinBlock",
     "build_erwin_graph",
 ]
-
-_MASKED = -1e9  # additive logit for padded keys (finite, so an all-padding ball stays finite)
-
-
-def _dense(features: int, name: str | None = None) -> nn.Dense:
-    """Dense with the official init: truncated-normal (std 0.02) kernel, zero bias."""
-    return nn.Dense(features, kernel_init=nn.initializers.truncated_normal(0.02), name=name)
 
 
 @struct.dataclass
@@ -112,117 +114,6 @@ def build_erwin_graph(config: ErwinConfig, inputs: ModelInput, grid: GridSpec | 
     return ErwinGraph(tree=tree, neighbors=nbrs)
 
 
-def _ball_view(a: jax.Array, m: int) -> jax.Array:
-    """``[M, ...] -> [M / m, m, ...]`` contiguous balls of ``m`` leaves."""
-    return a.reshape((a.shape[0] // m, m) + a.shape[1:])
-
-
-def _masked_centres(pos: jax.Array, valid: jax.Array) -> tuple[jax.Array, jax.Array]:
-    """Ball centres over real members. ``pos [B, m, 3]``, ``valid [B, m]`` -> ``[B, 1, 3]``, w."""
-    w = valid[..., None].astype(pos.dtype)
-    count = w.sum(axis=1, keepdims=True)
-    masked = (pos * w).sum(axis=1, keepdims=True) / jnp.maximum(count, 1.0)
-    centres = jnp.where(count > 0, masked, pos.mean(axis=1, keepdims=True))
-    return centres, w
-
-
-class BallMSA(nn.Module):
-    """Ball multi-head self-attention with positional term and distance fall-off (eqs. 8-10).
-
-    Attributes:
-        dim: feature width C (divisible by ``num_heads``).
-        num_heads: number of heads H.
-        ball_size: leaves per ball m (divides the number of rows).
-    """
-
-    dim: int
-    num_heads: int
-    ball_size: int
-
-    @nn.compact
-    def __call__(self, x: jax.Array, pos: jax.Array, valid: jax.Array) -> jax.Array:
-        """Args: x ``[M, C]``, pos ``[M, 3]``, valid ``[M]`` bool. Returns ``[M, C]``."""
-        m, h = self.ball_size, self.num_heads
-        e = self.dim // h
-        xb, pb, vb = _ball_view(x, m), _ball_view(pos, m), _ball_view(valid, m)
-        centres, w = _masked_centres(pb, vb)
-        xb = xb + _dense(self.dim, "pe_proj")((pb - centres) * w)
-        qkv = _dense(3 * self.dim, "qkv")(xb).reshape(xb.shape[:2] + (3, h, e))
-        q, k, v = qkv[:, :, 0], qkv[:, :, 1], qkv[:, :, 2]  # [B, m, H, E]
-        logits = jnp.einsum("bqhe,bkhe->bhqk", q, k) / math.sqrt(e)
-        sigma = self.param(
-            "sigma", lambda key: -1.0 + 0.01 * jax.random.normal(key, (h,), jnp.float32)
-        )
-        d2 = jnp.sum((pb[:, :, None, :] - pb[:, None, :, :]) ** 2, axis=-1)
-        dist = jnp.sqrt(jnp.maximum(d2, 1e-12))  # [B, m, m]
-        logits = logits + sigma[None, :, None, None] * dist[:, None]
-        logits = jnp.where(vb[:, None, None, :], logits, _MASKED)
-        attn = jax.nn.softmax(logits, axis=-1)
-        out = jnp.einsum("bhqk,bkhe->bqhe", attn, v).reshape(x.shape[0], self.dim)
-        return _dense(self.dim, "proj")(out)
-
-
-class ErwinBlock(nn.Module):
-    """Pre-norm transformer block: ``x + BallMSA(RMSNorm x)``, then ``x + SwiGLU(RMSNorm x)``."""
-
-    dim: int
-    num_heads: int
-    ball_size: int
-    mlp_ratio: int
-
-    @nn.compact
-    def __call__(self, x: jax.Array, pos: jax.Array, valid: jax.Array) -> jax.Array:
-        """Args: x ``[M, C]``, pos ``[M, 3]``, valid ``[M]``. Returns ``[M, C]``."""
-        x = x + BallMSA(self.dim, self.num_heads, self.ball_size, name="attn")(
-            RMSNorm(name="norm1")(x), pos, valid
-        )
-        return x + SwiGLU(self.dim * self.mlp_ratio, name="mlp")(RMSNorm(name="norm2")(x))
-
-
-class _BlockPair(nn.Module):
-    """Blocks ``2k`` (tree order) and ``2k + 1`` (rotated tree order when ``rotate``)."""
-
-    dim: int
-    num_heads: int
-    ball_size: int
-    mlp_ratio: int
-    rotate: bool
-
-    @nn.compact
-    def __call__(self, x, pos, valid, rot, inv):
-        args = (self.dim, self.num_heads, self.ball_size, self.mlp_ratio)
-        x = ErwinBlock(*args, name="plain")(x, pos, valid)
-        second = ErwinBlock(*args, name="rot")
-        if self.rotate:
-            return second(x[rot], pos[rot], valid[rot])[inv], None
-        return second(x, pos, valid), None
-
-
-class _Stage(nn.Module):
-    """``depth`` blocks at one tree level; odd blocks run in the rotated tree's order.
-
-    Pairs of blocks are an ``nn.scan`` (parameters stacked on a leading axis of length
-    ``depth // 2``), so compile time does not grow with depth; an odd last block follows.
-    """
-
-    dim: int
-    depth: int
-    num_heads: int
-    ball_size: int
-    mlp_ratio: int
-    rotate: bool
-
-    @nn.compact
-    def __call__(self, x, pos, valid, rot, inv):
-        """``x [M, C]``, ``pos [M, 3]``, ``valid [M]``; ``rot``/``inv`` ``[M]`` rotated order."""
-        args = (self.dim, self.num_heads, self.ball_size, self.mlp_ratio)
-        if self.depth // 2:
-            pairs = nn.scan(_BlockPair, variable_axes={"params": 0}, split_rngs={"params": True},
-                            in_axes=nn.broadcast, length=self.depth // 2)
-            x, _ = pairs(*args, self.rotate, name="pairs")(x, pos, valid, rot, inv)
-        if self.depth % 2:
-            x = ErwinBlock(*args, name="last")(x, pos, valid)
-        return x
 
 
 class _Pool(nn.Module):
@@ -234,11 +125,11 @@ class _Pool(nn.Module):
     @nn.compact
     def __call__(self, x, pos, valid):
         s = self.stride
-        xb, pb, vb = _ball_view(x, s), _ball_view(pos, s), _ball_view(valid, s)
-        centres, w = _masked_centres(pb, vb)
+        xb, pb, vb = ball_view(x, s), ball_view(pos, s), ball_view(valid, s)
+        centres, w = masked_centres(pb, vb)
         rel = ((pb - centres) * w).reshape(xb.shape[0], -1)
         feats = jnp.concatenate([(xb * w).reshape(xb.shape[0], -1), rel], axis=-1)
-        out = nn.LayerNorm(epsilon=1e-5, name="norm")(_dense(self.out_dim, "proj")(feats))
+        out = nn.LayerNorm(epsilon=1e-5, name="norm")(dense(self.out_dim, "proj")(feats))
         return out, centres[:, 0], vb.any(axis=1)
 
 
@@ -251,9 +142,9 @@ class _Unpool(nn.Module):
     @nn.compact
     def __call__(self, x, pos, skip, child_pos, child_valid):
         s = self.stride
-        cb, vb = _ball_view(child_pos, s), _ball_view(child_valid, s)
+        cb, vb = ball_view(child_pos, s), ball_view(child_valid, s)
         rel = ((cb - pos[:, None]) * vb[..., None]).reshape(x.shape[0], -1)
-        up = _dense(s * self.out_dim, "proj")(jnp.concatenate([x, rel], axis=-1))
+        up = dense(s * self.out_dim, "proj")(jnp.concatenate([x, rel], axis=-1))
         return nn.LayerNorm(epsilon=1e-5, name="norm")(skip + up.reshape(skip.shape))
 
 
@@ -270,6 +161,7 @@ class ErwinNet(nn.Module):
         rotate: use the rotated tree in every other block.
         widen: multiply the width by the stride at each coarsening (else constant ``hidden``).
         mp_steps: message-passing steps of the embedding.
+        remat: rematerialise every encoder and decoder block in the backward pass.
         out_dim: output channels (3: normalised acceleration).
     """
 
@@ -285,6 +177,7 @@ class ErwinNet(nn.Module):
     widen: bool = True
     mp_steps: int = 3
     out_dim: int = 3
+    remat: bool = False
 
     def _check(self, dims, sizes, balls, n_rot):
         """Raise :class:`ConfigError` on inconsistent lengths, ball sizes or head counts."""
@@ -336,9 +229,9 @@ class ErwinNet(nn.Module):
 
         skips = []
         for lvl in range(n_levels):
-            x = _Stage(
+            x = Stage(
                 dims[lvl], self.enc_depths[lvl], self.enc_heads[lvl], balls[lvl],
-                self.mlp_ratio, self.rotate, name=f"enc_{lvl}",
+                self.mlp_ratio, self.rotate, self.remat, name=f"enc_{lvl}",
             )(x, p, valid, rots[lvl], invs[lvl])
             if lvl < n_levels - 1:
                 skips.append((x, p, valid))
@@ -351,14 +244,14 @@ class ErwinNet(nn.Module):
                 x, p, skip, child_p, child_valid
             )
             p, valid = child_p, child_valid
-            x = _Stage(
+            x = Stage(
                 dims[lvl], self.dec_depths[lvl], self.dec_heads[lvl], balls[lvl],
-                self.mlp_ratio, self.rotate, name=f"dec_{lvl}",
+                self.mlp_ratio, self.rotate, self.remat, name=f"dec_{lvl}",
             )(x, p, valid, rots[lvl], invs[lvl])
 
         out = x[tree.inverse]  # node order; padded rows read slot 0 (finite, masked downstream)
-        out = jax.nn.gelu(_dense(dims[0], "head_0")(out), approximate=False)
-        return _dense(self.out_dim, "head_1")(out)
+        out = jax.nn.gelu(dense(dims[0], "head_0")(out), approximate=False)
+        return dense(self.out_dim, "head_1")(out)
 
 
 class Erwin(nn.Module):
@@ -379,7 +272,8 @@ class Erwin(nn.Module):
             hidden=c.hidden, enc_heads=tuple(c.enc_heads), enc_depths=tuple(c.enc_depths),
             dec_heads=tuple(c.dec_heads), dec_depths=tuple(c.dec_depths),
             strides=tuple(c.strides), ball_sizes=tuple(c.ball_sizes), mlp_ratio=c.mlp_ratio,
-            rotate=c.rotate > 0, widen=c.widen, mp_steps=c.mp_steps, name="net",
+            rotate=c.rotate > 0, widen=c.widen, mp_steps=c.mp_steps, remat=c.remat,
+            name="net",
         )
         return net(feats, inputs.positions, graph)
 

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import functools
 from collections.abc import Callable, Sequence
+from typing import Any
 
 import flax.linen as nn
 import jax
@@ -108,7 +109,7 @@ def mlp_tail(
     return layer_norm("norm")(x) if norm else x
 
 
-def remat_call(module: nn.Module, *args: jax.Array) -> jax.Array:
+def remat_call(module: nn.Module, *args: jax.Array, **static: Any) -> jax.Array:
     """``module(*args)``, its activations recomputed in the backward pass instead of stored.
 
     What ``flax.linen.remat`` promises, made to hold on the CPU: XLA's CPU pipeline drops the
@@ -118,19 +119,25 @@ def remat_call(module: nn.Module, *args: jax.Array) -> jax.Array:
     inputs with the parameters shifted by ``0 * ct[0]``, a data dependence on the incoming
     cotangent that no pass can merge away (exact: adding 0 changes no value). Call it inside a
     ``@nn.compact`` method with an unbound, named submodule; parameters and outputs are those of
-    ``module(*args)``, gradients equal to rounding (``tests/test_mgn_fast.py``).
+    ``module(*args)``, gradients equal to rounding (``tests/test_mgn_fast.py``,
+    ``tests/test_remat.py``).
+
+    The recomputation sees only the parameters and ``args``: a module that draws random numbers
+    (dropout) must take its key as one of ``args`` (as :class:`~thrombojax.models.transolver.
+    TransolverBlock` does), or the backward pass would lack the forward pass's masks.
 
     Args:
         module: a submodule (``name=`` set) returning one array.
-        *args: its array arguments (integer arrays get no gradient).
+        *args: its array arguments (integer, boolean and key arrays get no gradient).
+        **static: non-array keyword arguments of the call (``train=True``), passed unchanged.
     """
     definition = module.clone(parent=None)
 
     def pure(params, *a):
-        return definition.apply({"params": params}, *a)
+        return definition.apply({"params": params}, *a, **static)
 
     def fwd(mdl, *a):
-        return mdl(*a), (mdl.variables["params"], a)
+        return mdl(*a, **static), (mdl.variables["params"], a)
 
     def bwd(residuals, ct):
         params, a = residuals
@@ -140,7 +147,7 @@ def remat_call(module: nn.Module, *args: jax.Array) -> jax.Array:
         params_t, *args_t = vjp(ct)
         return ({"params": params_t}, *args_t)
 
-    return nn.custom_vjp(lambda mdl, *a: mdl(*a), fwd, bwd)(module, *args)
+    return nn.custom_vjp(lambda mdl, *a: mdl(*a, **static), fwd, bwd)(module, *args)
 
 
 class SplitDense(nn.Module):

@@ -32,6 +32,14 @@ Conventions (references disagree; choices):
   (Transolver's ``_init_weights``), the slice projection orthogonal; the MPNN embedding keeps
   the default initialisation of :mod:`thrombojax.models.layers`.
 * Graph: radius graph with self loops (``torch_cluster.radius_graph(loop=True)`` in Erwin).
+
+``config.remat``: every block is rematerialised (:func:`thrombojax.models.layers.remat_call`):
+the backward pass recomputes a block from its input instead of storing its activations (the
+``[n, H, M]`` slice weights, the ``[n, mlp_ratio C]`` MLP hidden layer), for about one more
+forward pass of the blocks (peaks: ``benchmarks/train_step.py``). In training with dropout each
+block then draws one key from the ``"dropout"`` stream and derives its masks from it, so the
+recomputation reuses the forward pass's masks; these masks differ from those of the default
+path (same distribution), so a run with ``remat`` is not bit-identical to one without.
 """
 
 from __future__ import annotations
@@ -44,7 +52,7 @@ import jax
 import jax.numpy as jnp
 
 from thrombojax.graph.neighbors import NeighborList
-from thrombojax.models.layers import MLP, MPNNEmbedding, gelu, layer_norm
+from thrombojax.models.layers import MLP, MPNNEmbedding, gelu, layer_norm, remat_call
 from thrombojax.models.registry import FlaxSurrogate, TransolverConfig
 from thrombojax.types import ModelInput
 
@@ -73,9 +81,12 @@ class PhysicsAttention(nn.Module):
     dropout: float = 0.0
 
     @nn.compact
-    def __call__(self, x: jax.Array, mask: jax.Array, *, train: bool = False) -> jax.Array:
-        """Args: x ``[n, C]`` tokens; mask ``[n]`` bool real tokens. Returns: ``[n, C]``."""
+    def __call__(self, x: jax.Array, mask: jax.Array, key: jax.Array | None = None, *,
+                 train: bool = False) -> jax.Array:
+        """Args: x ``[n, C]`` tokens; mask ``[n]`` bool real tokens; key: the dropout key
+        (default: drawn from the ``"dropout"`` RNG stream). Returns: ``[n, C]``."""
         n, c = x.shape
+        keys = (None, None) if key is None else tuple(jax.random.split(key))
         h, d = self.heads, c // self.heads
         fx = _dense(h * d, name="in_project_fx")(x).reshape(n, h, d)
         xs = _dense(h * d, name="in_project_x")(x).reshape(n, h, d)
@@ -94,12 +105,12 @@ class PhysicsAttention(nn.Module):
         qkv = nn.Dense(3 * d, use_bias=False, kernel_init=_INIT, name="qkv")(tokens)
         q, k, v = jnp.split(qkv, 3, axis=-1)
         attn = jax.nn.softmax(jnp.einsum("hmd,hkd->hmk", q, k) * d**-0.5, axis=-1)
-        attn = nn.Dropout(self.dropout, name="attn_dropout")(attn, deterministic=not train)
+        attn = nn.Dropout(self.dropout, name="attn_dropout")(attn, not train, keys[0])
         out_tokens = jnp.einsum("hmk,hkd->hmd", attn, v)
 
         y = jnp.einsum("nhm,hmd->nhd", weights, out_tokens).reshape(n, h * d)
         y = _dense(c, name="out")(y)
-        return nn.Dropout(self.dropout, name="out_dropout")(y, deterministic=not train)
+        return nn.Dropout(self.dropout, name="out_dropout")(y, not train, keys[1])
 
 
 class TransolverBlock(nn.Module):
@@ -116,11 +127,13 @@ class TransolverBlock(nn.Module):
     mlp_ratio: int
 
     @nn.compact
-    def __call__(self, x: jax.Array, mask: jax.Array, *, train: bool = False) -> jax.Array:
-        """Args: x ``[n, C]``; mask ``[n]``. Returns: ``[n, C]``."""
+    def __call__(self, x: jax.Array, mask: jax.Array, key: jax.Array | None = None, *,
+                 train: bool = False) -> jax.Array:
+        """Args: x ``[n, C]``; mask ``[n]``; key: the dropout key (default: drawn from the
+        ``"dropout"`` RNG stream). Returns: ``[n, C]``."""
         c = x.shape[-1]
         attn = PhysicsAttention(self.heads, self.slices, self.dropout, name="attention")
-        x = x + attn(layer_norm("ln_1")(x), mask, train=train)
+        x = x + attn(layer_norm("ln_1")(x), mask, key, train=train)
         mlp = MLP((c * self.mlp_ratio, c), activation=gelu, kernel_init=_INIT, name="mlp")
         return x + mlp(layer_norm("ln_2")(x))
 
@@ -162,7 +175,12 @@ class Transolver(nn.Module):
         for i in range(cfg.layers):
             block = TransolverBlock(cfg.heads, cfg.slices, cfg.dropout, cfg.mlp_ratio,
                                     name=f"block_{i}")
-            x = block(x, inputs.mask, train=train)
+            if not cfg.remat:
+                x = block(x, inputs.mask, train=train)
+            elif train and cfg.dropout > 0.0:  # the recomputation needs the forward's masks
+                x = remat_call(block, x, inputs.mask, self.make_rng("dropout"), train=True)
+            else:
+                x = remat_call(block, x, inputs.mask, train=train)
         return _dense(OUTPUT_DIM, name="head")(layer_norm("ln_out")(x))
 
 

@@ -11,6 +11,11 @@ Per epoch: the mean training loss and MSE, the validation loss and MSE (the stud
 best checkpoint is the one with the lowest validation MSE; without a validation split, the
 training MSE), the learning rate and the time go to ``metrics.jsonl``. A non-finite loss stops
 the run with :class:`TrainingDivergedError`; the last good checkpoint stays on disk.
+
+The host reads a step's metrics one step behind (after dispatching the next step), so it
+assembles the next batch while the device computes; steps that end an epoch or save a
+checkpoint are read at once, so the logs, checkpoints, callbacks and resume are those of reading
+every step at once (``tests/test_train_overlap.py``; speed: ``benchmarks/train_overlap.py``).
 """
 
 from __future__ import annotations
@@ -77,6 +82,7 @@ __all__ = ["train", "TrainingDivergedError", "plot_losses", "rollout_steps_at"]
 
 _MEMORY_OPTIONS = ("bary_ratio", "batch_size", "nodes_per_sample", "bary_max_neighbors")
 _EVAL_EPOCH = 2**31 - 1  # seed stream of the validation subsets, never a training epoch
+_OVERLAP = True  # read a step's metrics after dispatching the next (False: at once; tests)
 
 
 class TrainingDivergedError(ThrombojaxError, FloatingPointError):
@@ -261,6 +267,31 @@ def train(
     start = int(jax.device_get(state.step))
     bar = tqdm(total=total_steps, initial=start, disable=not progress, desc=f"train {model_name}")
     t0 = time.perf_counter()
+
+    def settle(step: int, epoch: int, device_metrics: dict) -> dict:
+        """A dispatched step's metrics on the host (waits for it); a non-finite loss stops."""
+        nonlocal acc
+        metrics = {k: float(v) for k, v in jax.device_get(device_metrics).items()}
+        if not math.isfinite(metrics["loss"]):
+            _log(out_dir, {"event": "nan", "step": step + 1, "epoch": epoch, **metrics})
+            raise TrainingDivergedError(
+                f"{out_dir}: training loss became {metrics['loss']} at step {step + 1} "
+                f"(epoch {epoch}); the last good checkpoint is kept in {ckpt / 'last'}; "
+                "lower --lr or set grad_clip"
+            )
+        acc += np.array([metrics["loss"], metrics["mse"], 1.0]) * metrics["nodes"]
+        return metrics
+
+    def done(step: int, metrics: dict) -> None:
+        bar.update(1)
+        if callback is not None:
+            callback(step + 1, metrics)
+
+    # one step behind: a step's metrics are read after the next step is dispatched, so the host
+    # assembles the next batch while the device computes. A step that ends an epoch or saves a
+    # checkpoint is read at once (before its state is saved, evaluated or donated to the next
+    # step), so no checkpoint follows an unchecked loss and every epoch ends with none pending.
+    pending = None  # (step, epoch, metrics on the device) of the step not read yet
     for epoch in range(start // steps_per_epoch, cfg.epochs):
         plan = plan_of(epoch=epoch)
         for position in range(start - epoch * steps_per_epoch if epoch == start // steps_per_epoch
@@ -269,18 +300,16 @@ def train(
             aug_key, step_key = jax.random.split(jax.random.fold_in(run_key, step))
             host_batch = batch_of(plan[position], epoch=epoch, position=position)
             batch = augment(aug_key, shard_batch(host_batch, mesh))
-            new_state, metrics = train_step_at(epoch)(state, batch, step_key)
-            metrics = {k: float(v) for k, v in jax.device_get(metrics).items()}
-            if not math.isfinite(metrics["loss"]):
-                _log(out_dir, {"event": "nan", "step": step + 1, "epoch": epoch, **metrics})
-                raise TrainingDivergedError(
-                    f"{out_dir}: training loss became {metrics['loss']} at step {step + 1} "
-                    f"(epoch {epoch}); the last good checkpoint is kept in {ckpt / 'last'}; "
-                    "lower --lr or set grad_clip"
-                )
-            state = new_state
-            acc += np.array([metrics["loss"], metrics["mse"], 1.0]) * metrics["nodes"]
+            state, device_metrics = train_step_at(epoch)(state, batch, step_key)
+            if pending is not None:
+                done(pending[0], settle(*pending))
+                pending = None
             last_of_epoch = position == steps_per_epoch - 1
+            save = cfg.checkpoint_every and (step + 1) % cfg.checkpoint_every == 0
+            if _OVERLAP and not (last_of_epoch or save):
+                pending = (step, epoch, device_metrics)
+                continue
+            metrics = settle(step, epoch, device_metrics)
             if last_of_epoch:
                 record = _end_epoch(epoch, step + 1, acc, val_batches, eval_step, state, mesh,
                                     float(schedule(step)), time.perf_counter() - t0)
@@ -298,11 +327,9 @@ def train(
                 checkpoint("last", epoch + 1, 0)
                 bar.set_postfix(loss=f"{record['train_loss']:.3g}",
                                 val=f"{record.get('val_mse', float('nan')):.3g}")
-            elif cfg.checkpoint_every and (step + 1) % cfg.checkpoint_every == 0:
+            elif save:
                 checkpoint("last", epoch, position + 1)
-            bar.update(1)
-            if callback is not None:
-                callback(step + 1, metrics)
+            done(step, metrics)
     bar.close()
     if jax.process_index() == 0:
         plot_losses(out_dir / "metrics.jsonl", out_dir / "loss.png")
