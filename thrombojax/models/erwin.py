@@ -94,7 +94,9 @@ class ErwinGraph:
     neighbors: NeighborList
 
 
-def build_erwin_graph(config: ErwinConfig, inputs: ModelInput, grid: GridSpec | None = None):
+def build_erwin_graph(
+    config: ErwinConfig, inputs: ModelInput, grid: GridSpec | None = None
+) -> ErwinGraph:
     """Ball tree (plus rotated trees) and radius graph of ``inputs.positions`` (jittable).
 
     Args:
