@@ -40,7 +40,8 @@ def _command_under(extra_env, tmp_path):
     (tmp_path / "sitecustomize.py").write_text(
         "import atexit, sys\n"
         "atexit.register(lambda: sys.stderr.write("
-        "'MAPS %s\\n' % ('tcmalloc' in open('/proc/self/maps').read())))\n")
+        "'MAPS %s\\n' % ('tcmalloc' in open('/proc/self/maps').read())))\n"
+        "atexit.register(lambda: sys.stderr.write('ARGV0 %s\\n' % sys.argv[0]))\n")
     root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
     env = {k: v for k, v in os.environ.items() if k not in ("LD_PRELOAD", OPT_OUT)}
     env.update(PYTHONPATH=os.pathsep.join([str(tmp_path), root]), **extra_env)
@@ -54,5 +55,7 @@ def test_command_reexecs_under_tcmalloc_and_opt_out_works(tmp_path):
     on = _command_under({}, tmp_path)
     assert on.returncode == 2 and "MAPS True" in on.stderr, on.stderr
     assert on.stderr.count("no such file") == 1  # the command ran once
+    # the re-executed process keeps the program name (results record the command as run)
+    assert "ARGV0 -c" not in on.stderr and "__main__.py" in on.stderr, on.stderr
     off = _command_under({OPT_OUT: "1"}, tmp_path)
     assert off.returncode == 2 and "MAPS False" in off.stderr, off.stderr

@@ -83,8 +83,9 @@ def reexec_with_tcmalloc(argv: Sequence[str]) -> None:
     sys.stderr.flush()
     # the same thrombojax as this process, whatever the working directory holds
     root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-    code = f"import sys; sys.path.insert(0, {root!r}); from thrombojax.cli import main; " \
-           "sys.exit(main())"
+    # argv[0] as the user ran it (not "-c"): results record the command they ran
+    code = f"import sys; sys.argv[0] = {sys.argv[0]!r}; sys.path.insert(0, {root!r}); " \
+           "from thrombojax.cli import main; sys.exit(main())"
     try:
         os.execve(sys.executable, [sys.executable, "-c", code, *argv], env)
     except OSError:

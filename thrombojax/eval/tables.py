@@ -29,6 +29,13 @@ def markdown_table(header: list[str], rows: list[list[Any]]) -> str:
     return "\n".join(lines) + "\n"
 
 
+def _program() -> str:
+    """The program's name as a user would type it (``python -m thrombojax`` runs
+    ``__main__.py``)."""
+    name = pathlib.Path(sys.argv[0]).name
+    return "thrombojax" if name == "__main__.py" else name
+
+
 def environment() -> dict:
     """Device, versions, date, command and machine load: recorded beside every figure.
 
@@ -38,7 +45,7 @@ def environment() -> dict:
     dev = jax.devices()[0]
     return {
         "date": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
-        "command": " ".join([pathlib.Path(sys.argv[0]).name, *sys.argv[1:]]),
+        "command": " ".join([_program(), *sys.argv[1:]]),
         "device": f"{dev.platform}:{getattr(dev, 'device_kind', '')}",
         "n_devices": jax.device_count(),
         "cpu_count": os.cpu_count(),
