@@ -62,12 +62,14 @@ def test_every_experiment_loads_at_every_scale():
 
 def test_set_overrides_a_scale_and_bad_keys_fail():
     exp = find_experiment("rotation_sweep")
+    epochs = exp.scale("cpu").train.epochs
+    assert epochs != 3
     edited = apply_sets(exp, "cpu", ["train.epochs=3", 'models=["mgn"]',
                                      "model_config.mgn.hidden=48", "seeds=2"])
     runs = plan_runs(edited, "cpu")
     assert {r.model for r in runs} == {"mgn"} and {r.seed for r in runs} == {0, 1}
     assert all(r.train.epochs == 3 and r.train.model_config["hidden"] == 48 for r in runs)
-    assert plan_runs(exp, "cpu")[0].train.epochs == 10  # the original is unchanged
+    assert plan_runs(exp, "cpu")[0].train.epochs == epochs  # the original is unchanged
     with pytest.raises(ConfigError, match="epochs"):
         apply_sets(exp, "cpu", ["train.epochs=0"])
     with pytest.raises(ConfigError, match="unknown training option"):
@@ -97,8 +99,10 @@ def test_cost_estimate_counts_steps():
     est = estimate(exp, "cpu")
     runs = plan_runs(exp, "cpu")
     # 20 sims - 2 val - 1 test = 17 x 39 windows; bary ratio r adds r x as many samples
-    expect = sum(10 * -(-17 * 39 * (1 + r.train.bary_ratio) // 4) for r in runs)
-    assert est["runs"] == len(runs) == 12 and est["steps"] == expect
+    sc = exp.scale("cpu")
+    expect = sum(sc.train.epochs * -(-17 * 39 * (1 + r.train.bary_ratio) // 4) for r in runs)
+    assert est["runs"] == len(runs) == len(sc.values) * len(sc.seeds) * len(sc.models)
+    assert est["steps"] == expect
     assert est["seconds"] == pytest.approx(expect * exp.scale("cpu").step_s["mgn"])
     assert estimate(find_experiment("test_mse"), "study")["seconds"] is None  # not measured
     ladder = plan_runs(find_experiment("stability_ladder"), "cpu")
