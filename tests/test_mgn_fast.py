@@ -13,6 +13,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 from dataset_factory import random_model_input
+from tree_helpers import assert_trees_close, perturbed
 
 from thrombojax.models import create_model, get_config
 from thrombojax.models.layers import MPNNEmbedding, SplitDense
@@ -22,28 +23,13 @@ N_REAL, N_PAD = 40, 8
 TOL = 1e-5
 
 
-def _perturbed(params, seed=5):
-    """Non-trivial LayerNorm scales/biases and non-zero Dense biases, so every term matters."""
-    leaves, tree = jax.tree_util.tree_flatten(params)
-    keys = jax.random.split(jax.random.key(seed), len(leaves))
-    return jax.tree_util.tree_unflatten(
-        tree, [a + 0.1 * jax.random.normal(k, a.shape) for a, k in zip(leaves, keys, strict=True)]
-    )
-
-
-def _assert_trees_close(a, b, tol=TOL):
-    assert jax.tree_util.tree_structure(a) == jax.tree_util.tree_structure(b)
-    for x, y in zip(jax.tree_util.tree_leaves(a), jax.tree_util.tree_leaves(b), strict=True):
-        np.testing.assert_allclose(x, y, rtol=tol, atol=tol)
-
-
 def test_split_dense_is_dense_of_the_concatenation():
     parts = [jax.random.normal(jax.random.key(i), (7, d)) for i, d in enumerate((3, 5, 2))]
     dense, split = nn.Dense(4), SplitDense(4, bias_part=1)
     p_dense = dense.init(jax.random.key(0), jnp.concatenate(parts, -1))
     p_split = split.init(jax.random.key(0), *parts)
-    _assert_trees_close(p_dense, p_split, tol=0.0)  # same names, shapes and initial values
-    p = _perturbed(p_dense)
+    assert_trees_close(p_dense, p_split, tol=0.0)  # same names, shapes and initial values
+    p = perturbed(p_dense)
 
     def f_dense(p, parts):
         return jnp.sum(jnp.sin(dense.apply(p, jnp.concatenate(parts, -1))))
@@ -52,7 +38,7 @@ def test_split_dense_is_dense_of_the_concatenation():
         return jnp.sum(jnp.sin(sum(split.apply(p, *parts))))
 
     np.testing.assert_allclose(f_split(p, parts), f_dense(p, parts), rtol=TOL)
-    _assert_trees_close(jax.grad(f_split, argnums=(0, 1))(p, parts),
+    assert_trees_close(jax.grad(f_split, argnums=(0, 1))(p, parts),
                         jax.grad(f_dense, argnums=(0, 1))(p, parts))
 
 
@@ -91,14 +77,14 @@ def test_meshgraphnet_rewrites_equal_plain(mgn_case, factorised, slot_sum, remat
     fast_config = dataclasses.replace(config, remat=remat)
     fast, fast_fn = _mgn_loss(fast_config, factorised, slot_sum, inputs, graph)
     params = plain.init(jax.random.key(1), inputs, graph)
-    _assert_trees_close(fast.init(jax.random.key(1), inputs, graph), params, tol=0.0)
-    params = _perturbed(params)
+    assert_trees_close(fast.init(jax.random.key(1), inputs, graph), params, tol=0.0)
+    params = perturbed(params)
     (loss_p, out_p), grads_p = plain_fn(params)
     (loss_f, out_f), grads_f = fast_fn(params)
     assert float(jnp.std(out_p)) > 0.0
     np.testing.assert_allclose(out_f, out_p, rtol=TOL, atol=TOL)
     np.testing.assert_allclose(loss_f, loss_p, rtol=TOL)
-    _assert_trees_close(grads_f, grads_p)
+    assert_trees_close(grads_f, grads_p)
     assert all(float(jnp.max(jnp.abs(g))) > 0 for g in jax.tree_util.tree_leaves(grads_p))
 
 
@@ -127,8 +113,8 @@ def test_mpnn_split_message_equals_concatenation(steps):
     nbrs = nbrs.at[0].set(n)  # a node without neighbours
     split, plain = MPNNEmbedding(8, steps, split=True), MPNNEmbedding(8, steps, split=False)
     params = plain.init(jax.random.key(0), feats, pos, nbrs)
-    _assert_trees_close(split.init(jax.random.key(0), feats, pos, nbrs), params, tol=0.0)
-    params = _perturbed(params)
+    assert_trees_close(split.init(jax.random.key(0), feats, pos, nbrs), params, tol=0.0)
+    params = perturbed(params)
 
     def loss(module):
         return jax.jit(jax.value_and_grad(
@@ -138,4 +124,4 @@ def test_mpnn_split_message_equals_concatenation(steps):
     np.testing.assert_allclose(val_s, val_p, rtol=TOL)
     np.testing.assert_allclose(split.apply(params, feats, pos, nbrs),
                                plain.apply(params, feats, pos, nbrs), rtol=TOL, atol=TOL)
-    _assert_trees_close(grads_s, grads_p)
+    assert_trees_close(grads_s, grads_p)

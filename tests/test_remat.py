@@ -14,6 +14,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 from dataset_factory import random_model_input
+from tree_helpers import assert_trees_close, perturbed
 
 from thrombojax.models import create_model, get_config
 from thrombojax.models.layers import remat_call
@@ -26,21 +27,6 @@ CONFIGS = {
     "transolver": dict(radius=0.5, dropout=0.0),
     "erwin": dict(radius=0.5, enc_depths=(3, 2), dec_depths=(3,)),  # pairs + an odd last block
 }
-
-
-def _perturbed(params, seed=5):
-    """Non-trivial norm scales/biases and non-zero Dense biases, so every term matters."""
-    leaves, tree = jax.tree_util.tree_flatten(params)
-    keys = jax.random.split(jax.random.key(seed), len(leaves))
-    return jax.tree_util.tree_unflatten(
-        tree, [a + 0.1 * jax.random.normal(k, a.shape) for a, k in zip(leaves, keys, strict=True)]
-    )
-
-
-def _assert_trees_close(a, b, tol=TOL):
-    assert jax.tree_util.tree_structure(a) == jax.tree_util.tree_structure(b)
-    for x, y in zip(jax.tree_util.tree_leaves(a), jax.tree_util.tree_leaves(b), strict=True):
-        np.testing.assert_allclose(x, y, rtol=tol, atol=tol)
 
 
 def _models(name, **overrides):
@@ -67,15 +53,15 @@ def test_remat_equals_plain(name, train):
     inputs = random_model_input(N_REAL, N_PAD, seed=2)
     graph = plain.build_graph(inputs)
     params = plain.init(jax.random.key(1), inputs, graph)
-    _assert_trees_close(fast.init(jax.random.key(1), inputs, graph), params, tol=0.0)
-    params = _perturbed(params)
+    assert_trees_close(fast.init(jax.random.key(1), inputs, graph), params, tol=0.0)
+    params = perturbed(params)
     kwargs = {"train": train, "rng": jax.random.key(3)} if train else {}
     (loss_p, out_p), grads_p = _loss_fn(plain, inputs, graph, **kwargs)(params)
     (loss_f, out_f), grads_f = _loss_fn(fast, inputs, graph, **kwargs)(params)
     assert float(jnp.std(out_p)) > 0.0
     np.testing.assert_allclose(out_f, out_p, rtol=TOL, atol=TOL)
     np.testing.assert_allclose(loss_f, loss_p, rtol=TOL)
-    _assert_trees_close(grads_f, grads_p)
+    assert_trees_close(grads_f, grads_p)
     leaves = jax.tree_util.tree_leaves_with_path(grads_p)  # a clamped temperature has none
     assert all(float(jnp.max(jnp.abs(g))) > 0 for path, g in leaves
                if "temperature" not in jax.tree_util.keystr(path))
@@ -101,8 +87,8 @@ def test_remat_block_reuses_the_dropout_masks(key_fn):
     key = key_fn(7)
     plain, fast = _Block(remat=False), _Block(remat=True)
     params = plain.init(jax.random.key(1), x, mask, key)
-    _assert_trees_close(fast.init(jax.random.key(1), x, mask, key), params, tol=0.0)
-    params = _perturbed(params)
+    assert_trees_close(fast.init(jax.random.key(1), x, mask, key), params, tol=0.0)
+    params = perturbed(params)
 
     def grads(module):
         return jax.jit(jax.value_and_grad(
@@ -110,7 +96,7 @@ def test_remat_block_reuses_the_dropout_masks(key_fn):
 
     (val_p, grads_p), (val_f, grads_f) = grads(plain)(params, x), grads(fast)(params, x)
     np.testing.assert_allclose(val_f, val_p, rtol=TOL)
-    _assert_trees_close(grads_f, grads_p)
+    assert_trees_close(grads_f, grads_p)
     # dropout is active: another key gives another output
     other = plain.apply(params, x, mask, key_fn(8))
     assert float(jnp.max(jnp.abs(other - plain.apply(params, x, mask, key)))) > 1e-3
