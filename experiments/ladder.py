@@ -48,14 +48,21 @@ from thrombojax.eval.metrics import (  # noqa: E402
     fraction_outside,
     mse_per_step,
 )
-from thrombojax.eval.single_step import scaled_simulation, single_step_errors  # noqa: E402
+from thrombojax.eval.single_step import (  # noqa: E402
+    ensemble_single_step_errors,
+    scaled_simulation,
+    single_step_errors,
+)
 from thrombojax.eval.tables import environment, markdown_table  # noqa: E402
+from thrombojax.eval.uncertainty import uncertainty_summary  # noqa: E402
 from thrombojax.io.hdf5 import open_dataset  # noqa: E402
 from thrombojax.io.outputs import atomic_path, atomic_write_text  # noqa: E402
 from thrombojax.models.registry import create_model, identity_stats  # noqa: E402
+from thrombojax.simulator.ensemble import ensemble_rollout, stack_params  # noqa: E402
 from thrombojax.simulator.guard_set import build_guards  # noqa: E402
 from thrombojax.simulator.rollout import (  # noqa: E402
     constant_velocity_rollout,
+    guarded_unroll,
     rollout_with_corrections,
 )
 from thrombojax.simulator.step import make_step  # noqa: E402
@@ -77,6 +84,7 @@ class Rung:
     train: dict
     guards: bool = False
     reuse: str | None = None  # evaluate another rung's trained model
+    members: int = 1  # > 1: a deep ensemble; member 0 is ``reuse``'s model, the others seeds 1..
 
 
 RUNGS: tuple[Rung, ...] = (
@@ -93,6 +101,9 @@ RUNGS: tuple[Rung, ...] = (
                   "curriculum_epochs": 6, "frame": "vessel", "grad_clip": 1.0}, guards=True),
     Rung("wall", {**NOISE, "pushforward_steps": 1, "rollout_steps": 3, "curriculum_epochs": 6,
                   "max_rotation": np.pi, "wall_features": 1.5}, guards=True),
+    Rung("ensemble", {**NOISE, "pushforward_steps": 1, "rollout_steps": 3,
+                      "curriculum_epochs": 6, "max_rotation": np.pi}, guards=True,
+         reuse="rotation", members=3),
 )
 
 
@@ -132,28 +143,62 @@ def _finished(run: pathlib.Path, total_steps: int) -> bool:
     return any(json.loads(ln).get("step") == total_steps for ln in lines if ln.strip())
 
 
-def _evaluate(run: pathlib.Path, data: str, guards: bool, n_nodes: int | None = None) -> dict:
-    trained = load_trained(run)
+def _member_runs(rung: Rung, out: pathlib.Path, data: str, split: dict,
+                 n_nodes: int | None) -> list[pathlib.Path]:
+    """The runs a rung evaluates: its own (or ``reuse``'s), plus for an ensemble members
+    1 .. M-1 trained with the same recipe and epochs as member 0 and seeds 1 .. M-1."""
+    first = out / rung.reuse / "run" if rung.reuse else out / rung.name / "run"
+    if not (first / "config.json").is_file():
+        raise SystemExit(f"ladder: rung {rung.name!r} needs rung {rung.reuse!r} trained first "
+                         f"({first} has no run); add it to --rungs")
+    runs = [first]
+    epochs = json.loads((first / "config.json").read_text())["train"]["epochs"]
+    for seed in range(1, rung.members):
+        folder = out / rung.name / f"member_{seed}"
+        folder.mkdir(parents=True, exist_ok=True)
+        member = dataclasses.replace(rung, name=f"{rung.name} member {seed}",
+                                     train={**rung.train, "seed": seed})
+        runs.append(_train_rung(member, data, folder, split, 0.0, epochs, epochs, n_nodes))
+    return runs
+
+
+def _evaluate(runs: list[pathlib.Path], data: str, guards: bool,
+              n_nodes: int | None = None) -> dict:
+    members = [load_trained(run) for run in runs]
+    trained = members[0]
     ds = open_dataset(data)
     skip = max(study.skip_frames(ds), 1)
     r = vessel_radius(ds) / float(trained.scaling.scale)  # one radius, scaled coordinates
     step, cv = trained.step, make_step(create_model("constant_velocity"))
+    params = [m.params for m in members]
     per_sim = {}
     for name in trained.split.test:
         full, full_nt = scaled_simulation(ds, name, trained.scaling)
         idx = subsample_indices(0, full_nt, n_nodes or len(full_nt))  # the study's 2,048
         pos, nt = full[:, idx], full_nt[idx]
-        m1 = single_step_errors(step, trained.params, trained.stats, pos, nt)
+        m1 = ensemble_single_step_errors(step, params, trained.stats, pos, nt)
         c1 = single_step_errors(cv, {}, identity_stats(), pos, nt)
         phase = np.arange(1, pos.shape[0] - 1) >= skip
         n = pos.shape[0] - 1 - skip
         mask = np.ones(len(nt), bool)
         g = build_guards(full[0], full_nt, pos[skip], nt, radius=r,
                          wall_cells=ds[name].wall_cells) if guards else None
-        pred, corr = rollout_with_corrections(trained.step, trained.params, trained.stats,
-                                              pos[skip - 1], pos[skip], nt, mask, n, guards=g)
-        pred = np.asarray(pred)
         true = pos[skip + 1:]
+        extra = {}
+        if len(members) == 1:
+            pred, corr = rollout_with_corrections(step, trained.params, trained.stats,
+                                                  pos[skip - 1], pos[skip], nt, mask, n,
+                                                  guards=g)
+        else:
+            ens = ensemble_rollout(step, stack_params(params), trained.stats, pos[skip - 1],
+                                   pos[skip], nt, mask, n,
+                                   rollout_fn=guarded_unroll if g is not None else None,
+                                   context=g)
+            pred, corr = ens.mean, ens.aux or {}
+            extra = {"uncertainty": uncertainty_summary(np.asarray(ens.mean),
+                                                        np.asarray(ens.spread), true, nt,
+                                                        scale=1.0 / r)}
+        pred = np.asarray(pred)
         base = constant_velocity_rollout(pos[skip - 1], pos[skip], nt, mask, n)
         clot = clot_mask(nt)
         wall = fit_vessel_wall(full[0], full_nt, wall_cells=ds[name].wall_cells)
@@ -170,14 +215,16 @@ def _evaluate(run: pathlib.Path, data: str, guards: bool, n_nodes: int | None = 
             "max_outside_cv": float(fraction_outside(wall, base, clot).max()),
             "max_correction_r": max((float(np.asarray(c).max()) for c in corr.values()),
                                     default=0.0) / r,
-            "mse_per_step": mse.tolist(), "mse_per_step_cv": mse_cv.tolist(),
+            "mse_per_step": mse.tolist(), "mse_per_step_cv": mse_cv.tolist(), **extra,
         }
-    keys = [k for k in next(iter(per_sim.values())) if not k.startswith("mse_per_step")]
+    keys = [k for k, v in next(iter(per_sim.values())).items()
+            if not k.startswith("mse_per_step") and isinstance(v, float)]
     mean = {k: float(np.mean([s[k] for s in per_sim.values()])) for k in keys}
     for k in ("max_outside", "max_outside_cv", "max_correction_r"):
         mean[k] = float(np.max([s[k] for s in per_sim.values()]))
     return {"simulations": per_sim, "mean": mean, "skip_frames": skip, "n_nodes": len(idx),
-            "epochs": json.loads((run / "config.json").read_text())["train"]["epochs"]}
+            "members": len(members),
+            "epochs": json.loads((runs[0] / "config.json").read_text())["train"]["epochs"]}
 
 
 def _table(results: dict) -> str:
@@ -197,6 +244,29 @@ def _table(results: dict) -> str:
                            "MSE@10 (r^2)", "MSE@full (r^2)", "MSE@full / CV",
                            "final centroid error (r)", "max clot outside",
                            "largest guard correction (r)", "epochs"], rows)
+
+
+def _uncertainty_lines(results: dict) -> str:
+    """One line per ensemble rung: how well its spread predicts the error of its mean."""
+    lines = []
+    for name, res in results.items():
+        sims = [s["uncertainty"] for s in res["simulations"].values() if "uncertainty" in s]
+        if not sims:
+            continue
+
+        def avg(key, sims=sims):
+            vals = [s[key] for s in sims if s[key] is not None]
+            return float(np.mean(vals)) if vals else float("nan")
+
+        lines.append(
+            f"- {name} ({res['members']} members): spread vs error of the mean per clot node and "
+            f"step, Spearman {avg('spearman'):.2f}, Pearson {avg('pearson'):.2f}, over time "
+            f"(mean spread vs mean error per step) {avg('temporal_pearson'):.2f}; mean error / "
+            f"mean spread {avg('calibration'):.2f} (1: calibrated, > 1: over-confident); "
+            f"{100 * avg('within_2_spread'):.0f} % of nodes within 2 spreads; mean spread "
+            f"{avg('mean_spread'):.3f} r against a mean error of {avg('mean_error'):.3f} r "
+            "(means over the held-out simulations)\n")
+    return "".join(lines)
 
 
 def _plot(results: dict, path: pathlib.Path, title: str) -> None:
@@ -252,10 +322,11 @@ def main(argv: list[str] | None = None) -> int:
             continue
         folder.mkdir(exist_ok=True)
         t = time.perf_counter()
-        run = (out / rung.reuse / "run") if rung.reuse else _train_rung(
-            rung, args.dataset, folder, split, args.minutes, args.max_epochs, args.epochs,
-            args.nodes)
-        res = _evaluate(run, args.dataset, rung.guards, args.nodes)
+        if not rung.reuse:
+            _train_rung(rung, args.dataset, folder, split, args.minutes, args.max_epochs,
+                        args.epochs, args.nodes)
+        runs = _member_runs(rung, out, args.dataset, split, args.nodes)
+        res = _evaluate(runs, args.dataset, rung.guards, args.nodes)
         res.update(rung=dataclasses.asdict(rung) | {"train": {k: str(v) for k, v in
                                                                rung.train.items()}},
                    seconds=time.perf_counter() - t)
@@ -272,6 +343,7 @@ def main(argv: list[str] | None = None) -> int:
         "`epochs` column (a rung trained with `--minutes M` gets the epochs one timed epoch "
         "says fit M minutes on the machine; with `--epochs N`, exactly N)"
         + (f"; {args.nodes} nodes per simulation" if args.nodes else "") + ".\n\n"
+        + (f"Uncertainty:\n{unc}\n" if (unc := _uncertainty_lines(results)) else "")
         + "".join(f"- {k}: {v}\n" for k, v in env.items()))
     atomic_write_text(out / "ladder.json", json.dumps({"environment": env, "results": results},
                                                       indent=1))

@@ -36,3 +36,33 @@ def test_calibration_times_the_full_k_step_loss(tmp_path, monkeypatch):
     assert run == "run" and run_kw["curriculum_epochs"] == rung.train["curriculum_epochs"]
     assert run_kw["epochs"] == 7  # the fake's instant epochs fit max_epochs
     assert not (tmp_path / "kstep" / "calibration").exists()
+
+
+def test_ensemble_rung_trains_members_like_the_reused_rung(tmp_path, monkeypatch):
+    """Member 0 is the reused rung's run; members 1 .. M-1 get its recipe, its epoch count
+    and seeds 1 .. M-1; a missing reused run is a clear error."""
+    import json
+
+    import pytest
+
+    ladder = _ladder(monkeypatch)
+    rung = next(r for r in ladder.RUNGS if r.name == "ensemble")
+    assert rung.members > 1 and rung.guards
+    calls = []
+
+    def fake_train(data, model, out, **kw):
+        calls.append((pathlib.Path(out), kw))
+
+    monkeypatch.setattr(ladder, "train", fake_train)
+    with pytest.raises(SystemExit, match=rung.reuse):
+        ladder._member_runs(rung, tmp_path, "data.h5", {}, None)
+    first = tmp_path / rung.reuse / "run"
+    first.mkdir(parents=True)
+    (first / "config.json").write_text(json.dumps({"train": {"epochs": 4}}))
+    runs = ladder._member_runs(rung, tmp_path, "data.h5", {"test_sims": ["a"]}, None)
+    assert runs[0] == first and len(runs) == rung.members
+    reused = next(r for r in ladder.RUNGS if r.name == rung.reuse)
+    for seed, (out, kw) in enumerate(calls, start=1):
+        assert out == tmp_path / rung.name / f"member_{seed}" / "run" == runs[seed]
+        assert kw["seed"] == seed and kw["epochs"] == 4 and kw["test_sims"] == ["a"]
+        assert {k: kw[k] for k in reused.train} == reused.train  # the same recipe

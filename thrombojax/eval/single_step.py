@@ -54,6 +54,7 @@ __all__ = [
     "scaled_simulation",
     "simulation_exit_frame",
     "single_step_errors",
+    "ensemble_single_step_errors",
     "single_step_by_phase",
     "evaluate_run",
 ]
@@ -177,7 +178,33 @@ def single_step_errors(
     Returns:
         ``[n_windows]`` MSE per window ``t = max(skip, 1) .. T - 2``.
     """
+    return ensemble_single_step_errors(step, [params], stats, positions, node_type, skip=skip,
+                                       batch_size=batch_size)
+
+
+def ensemble_single_step_errors(
+    step: LearnedStep,
+    params_list: list[dict],
+    stats: TargetStats,
+    positions: np.ndarray,
+    node_type: np.ndarray,
+    *,
+    skip: int = 0,
+    batch_size: int = 8,
+) -> np.ndarray:
+    """:func:`single_step_errors` of the member mean of M models (a deep ensemble's one-step
+    prediction: every member predicts s_{t+1} from the true s_{t-1}, s_t; the M predictions
+    are averaged). One member gives :func:`single_step_errors` exactly.
+
+    Args:
+        params_list: M >= 1 parameter trees sharing ``step`` and ``stats``.
+        step, stats, positions, node_type, skip, batch_size: as in :func:`single_step_errors`.
+    Returns:
+        ``[n_windows]`` MSE of the mean prediction per window.
+    """
     step.require_dense("single-step evaluation")
+    if not params_list:
+        raise ConfigError("single-step evaluation of an ensemble needs at least one member")
     times = np.arange(max(skip, 1), positions.shape[0] - 1)
     if times.size == 0:
         raise ConfigError(f"no window with skip={skip} in a simulation of {positions.shape[0]} "
@@ -188,8 +215,10 @@ def single_step_errors(
     for lo in range(0, times.size, batch_size):
         t = times[lo:lo + batch_size]
         t_pad = np.concatenate([t, np.full(batch_size - t.size, t[-1])])
-        nxt = np.asarray(_batched_next(step, params, stats, positions[t_pad - 1],
-                                       positions[t_pad], jnp.asarray(node_type), mask))
+        preds = [np.asarray(_batched_next(step, params, stats, positions[t_pad - 1],
+                                          positions[t_pad], jnp.asarray(node_type), mask))
+                 for params in params_list]
+        nxt = preds[0] if len(preds) == 1 else np.mean(preds, axis=0)
         errors.append(mse_per_step(nxt[:t.size], positions[t + 1], clot))
     return np.concatenate(errors)
 
