@@ -1,13 +1,19 @@
 """The stability ladder: one small model, one CPU budget per rung, each rung adds one technique.
 
     python experiments/ladder.py --dataset data/bendvessel.h5 --out experiments/results/ladder
+    python experiments/ladder.py --dataset data/clotentry.h5 --nodes 2048 --epochs 4
+        --out experiments/results/ladder_clotentry --rungs baseline,rotation --title ClotEntry
+        --test clotentry_008,clotentry_009 --val clotentry_007     # (one command)
 
 Rungs (cumulative): baseline (single-step loss) -> + input noise -> + push-forward ->
 + k-step loss with a curriculum -> + guards in the rollout (same model) -> + rotation
 augmentation; then rotation handled by the frame instead: the k-step rung with guards in the
 rigid vessel's frame (exactly invariant to orientation, no augmentation) -> the same with
 gradient clipping (global norm 1); and the rotation rung + wall features (distance and
-direction to the nearest vessel node, cut off at 1.5 vessel radii). Every rung
+direction to the nearest vessel node, cut off at 1.5 vessel radii); and an ensemble of three
+models of the rotation rung's recipe (member 0 is that rung's model, members 1-2 the same
+recipe, epochs and seeds 1-2), rolled out together with guards, whose mean is the prediction
+and whose spread is scored against the error (``thrombojax.eval.uncertainty``). Every rung
 trains the same small MeshGraphNet for the same wall-clock budget (the
 epoch count is calibrated on this machine by timing one epoch), then is measured on held-out
 simulations (the split is by name: the last rotation is outside the training range):
