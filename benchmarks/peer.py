@@ -22,9 +22,11 @@ malloc) and the peer with tcmalloc preloaded. The parent then runs ``--rounds`` 
 round every worker in turn (the first one rotating) times each of its cases (``--steps`` calls
 of the step and train cases, one call of a rollout or forward), so a change of machine load
 hits all sides alike. Printed: median and range per case and side, minor page faults per
-learned step, mean graph edges per node of both sides, the ratios thrombojax / peer ("vs peer
-default" and "vs peer same allocator") beside the issue's targets, and the load, device,
-versions, date and command. Torch runs with ``torch.set_num_threads(--threads)``.
+learned step, a contention probe per side (the median time of a small two-thread op after
+every round: it grows when a worker's threads wait for a core busy with other work), mean
+graph edges per node of both sides, the ratios thrombojax / peer ("vs peer default" and "vs
+peer same allocator") beside the issue's targets, and the load, device, versions, date and
+command. Torch runs with ``torch.set_num_threads(--threads)``.
 
 A missing peer package skips only the models that need it, with how to install it; without
 torch nothing runs and the script exits 0.
@@ -60,9 +62,9 @@ How to install the peer stack (CPU; docs/performance.md):
                                      # a plain `pip install torch` pulls the CUDA build
   MAX_JOBS=1 pip wheel --no-build-isolation --no-deps torch_scatter torch_cluster -w wheels/
   pip install wheels/*.whl           # (no CPU wheels of these exist on the package index)
-  pip install -e '.[peer]'           # nvidia-physicsnemo, torch_geometric
-  git clone the official Erwin (github.com/maxxxzdn/erwin) and pass --erwin-src DIR;
-  pip install balltree-erwin einops"""
+  printf 'torch==2.13.0\\ntorchvision==0.28.0\\n' > constraints.txt   # keep the CPU torch
+  pip install -c constraints.txt -e '.[peer]'   # physicsnemo, torch_geometric, balltree-erwin
+  git clone the official Erwin (github.com/maxxxzdn/erwin) and pass --erwin-src DIR"""
 
 
 def missing_packages(models: list[str], erwin_src: str) -> dict[str, list[str]]:
@@ -114,19 +116,22 @@ def run_group(cases: list, sides: list[str], spec: dict, rounds: int, tcmalloc, 
             ready[side] = _read(procs[side], "ready", side)
             log(f"#   {side}: ready in {ready[side]['prepare_s']} s "
                 f"({ready[side]['allocator']})")
-        timings = {side: [] for side in sides}
+        timings, probes = {side: [] for side in sides}, {side: [] for side in sides}
         for r in range(rounds):
             order = sides[r % len(sides):] + sides[:r % len(sides)]
             for side in order:
                 procs[side].stdin.write("go\n")
                 procs[side].stdin.flush()
-                timings[side] += _read(procs[side], "round", side)["round"]
-            log(f"#   round {r + 1}/{rounds} done, load {peer_report.load()}")
+                msg = _read(procs[side], "round", side)
+                timings[side] += msg["round"]
+                probes[side].append(msg["probe_us"])
+            log(f"#   round {r + 1}/{rounds} done, load {peer_report.load()}, probe us "
+                + " / ".join(str(probes[s][-1]) for s in sides))
     finally:
         for proc in procs.values():
             proc.stdin.close()
             proc.wait()
-    return {"ready": ready, "rounds": timings, "load": peer_report.load()}
+    return {"ready": ready, "rounds": timings, "probe_us": probes, "load": peer_report.load()}
 
 
 def plan(args) -> list[list]:
@@ -144,7 +149,7 @@ def plan(args) -> list[list]:
 
 def parse(argv: list[str] | None):
     """The command line (see the module docstring; ``--help``)."""
-    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
+    p = argparse.ArgumentParser(description=__doc__.split("Usage::")[0],
                                 epilog=INSTALL, formatter_class=argparse.RawTextHelpFormatter)
     p.add_argument("--models", nargs="+", default=list(MODELS), choices=MODELS)
     p.add_argument("--cases", nargs="+", default=list(CASES), choices=CASES,
@@ -156,8 +161,9 @@ def parse(argv: list[str] | None):
     p.add_argument("--steps", type=int, default=2,
                    help="timed calls per round of the step and train cases (rollout and "
                         "forward: one)")
-    p.add_argument("--rollout-steps", type=int, default=40)
-    p.add_argument("--forward-nodes", type=int, default=27000)
+    p.add_argument("--rollout-steps", type=int, default=40, help="steps of the rollout case")
+    p.add_argument("--forward-nodes", type=int, default=27000,
+                   help="node count of the forward case (ClotEntry at full resolution)")
     p.add_argument("--threads", type=int, default=2, help="torch.set_num_threads")
     p.add_argument("--erwin-src", default="/work/erwin_src",
                    help="checkout of the official Erwin (its models/erwin.py)")
@@ -218,14 +224,17 @@ def main(argv: list[str] | None = None) -> int:
             print(line, flush=True)
             progress.append(line)
 
-        for group in groups:
+        for i, group in enumerate(groups):
             log(f"# {group[0][0]}: {', '.join(f'{k} {n}' for _, k, n in group)}")
             results.append(run_group(group, sides, spec, args.rounds, tcmalloc, log))
-    env["load_avg_end"] = peer_report.load()
-    report = peer_report.tables(results, sides, args, env)
+            env["load_avg_end"] = peer_report.load()
+            report = peer_report.tables(results, sides, args, env)
+            if args.out:  # after every group, so an interrupted run leaves what it measured
+                done = [] if i + 1 == len(groups) else [
+                    "", f"(partial: {i + 1} of {len(groups)} worker groups measured)"]
+                peer_report.write(args.out, lines + report + done + progress + ["```"],
+                                  results, env)
     print("\n".join(report), flush=True)
-    if args.out:
-        peer_report.write(args.out, lines + report + progress + ["```"], results, env)
     return 0
 
 

@@ -109,13 +109,27 @@ def _emit(msg: dict) -> None:
     print(json.dumps(msg), flush=True)
 
 
-def serve(prepare: Callable[[dict], list[Case]], spec: dict, versions: dict) -> None:
+def _probe_us(probe: Callable[[], object], calls: int = 21) -> float:
+    """Median microseconds of ``probe()`` (a small parallel op: its time is mostly the cost of
+    waking the worker threads, which grows when they wait for a busy core)."""
+    times = []
+    for _ in range(calls):
+        t0 = time.perf_counter()
+        probe()
+        times.append(1e6 * (time.perf_counter() - t0))
+    return sorted(times)[calls // 2]
+
+
+def serve(prepare: Callable[[dict], list[Case]], spec: dict, versions: dict,
+          probe: Callable[[], object] | None = None) -> None:
     """Run a worker: prepare the cases of ``spec``, then time them once per stdin line.
 
     Args:
         prepare: builds the :class:`Case` list of a spec (compilation and warm-up included).
         spec: the worker's spec from the parent (cases, repeats, paths).
         versions: library versions to report with ``ready``.
+        probe: a small multi-threaded op timed after every round (``probe_us``: a contention
+            check; see :func:`_probe_us`).
     """
     t0 = time.perf_counter()
     cases = prepare(spec)
@@ -133,4 +147,5 @@ def serve(prepare: Callable[[dict], list[Case]], spec: dict, versions: dict) -> 
                 faults = resource.getrusage(resource.RUSAGE_SELF).ru_minflt - faults
                 out.append({"key": case.key, "ms": ms,
                             "faults_per_step": faults / case.model_steps})
-        _emit({"round": out, "load": [round(x, 2) for x in os.getloadavg()]})
+        _emit({"round": out, "load": [round(x, 2) for x in os.getloadavg()],
+               "probe_us": None if probe is None else round(_probe_us(probe), 1)})

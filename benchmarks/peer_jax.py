@@ -157,4 +157,6 @@ def versions() -> dict:
 
 
 if __name__ == "__main__":
-    serve(prepare, json.loads(sys.argv[1]), versions())
+    _x, _gelu = jnp.ones(1 << 17), jax.jit(jax.nn.gelu)
+    serve(prepare, json.loads(sys.argv[1]), versions(),
+          probe=lambda: jax.block_until_ready(_gelu(_x)))

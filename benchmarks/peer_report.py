@@ -90,10 +90,16 @@ def _collect(results: list[dict], sides: list[str]) -> dict:
     for res in results:
         for side in sides:
             for key, info in res["ready"][side]["info"].items():
-                entry = out.setdefault(key, {"sides": {}, "info": {}, "load": res["load"]})
+                entry = out.setdefault(key, {"sides": {}, "info": {}, "load": res["load"],
+                                             "probe": res.get("probe_us", {})})
                 entry["info"][side] = info
                 entry["sides"][side] = _stats([r for r in res["rounds"][side] if r["key"] == key])
     return out
+
+
+def _median(values) -> str:
+    values = [v for v in values or [] if v is not None]
+    return f"{statistics.median(values):.0f}" if values else "-"
 
 
 def _target(kind: str, n: int, r_default: float, r_same: float) -> str:
@@ -113,7 +119,8 @@ def tables(results: list[dict], sides: list[str], args, env: dict) -> list[str]:
            "| model | case | nodes | " + " | ".join(f"{s} median (range)" for s in sides)
            + " | vs peer default | vs peer same allocator | issue target (default / same) | "
            "faults/step " + " / ".join(sides) + " | edges per node thrombojax / peer | params "
-           "thrombojax / peer | load at end |", "|" + "---|" * (len(sides) + 10)]
+           "thrombojax / peer | probe us (median) " + " / ".join(sides) + " | load at end |",
+           "|" + "---|" * (len(sides) + 11)]
     ratios, mismatch = {}, []
     for key, e in data.items():
         name, kind, n = key.split("|")
@@ -130,10 +137,11 @@ def tables(results: list[dict], sides: list[str], args, env: dict) -> list[str]:
                  f"{info['peer default'].get('edges_per_node', '-')}")
         cells = [f"{st[s]['median']:.1f} ({st[s]['min']:.1f}-{st[s]['max']:.1f})" for s in sides]
         faults = " / ".join(f"{st[s]['faults']:.0f}" for s in sides)
+        probe = " / ".join(_median(e["probe"].get(s)) for s in sides)
         label = LABELS[kind].format(r=args.rollout_steps)
         out.append(f"| {name} | {label} | {n:,} | " + " | ".join(cells)
                    + f" | {r_def:.2f} | {r_same:.2f} | {_target(kind, n, r_def, r_same)} | "
-                   f"{faults} | {edges} | {p_tj:,} / {p_peer:,}{flag} | {e['load']} |")
+                   f"{faults} | {edges} | {p_tj:,} / {p_peer:,}{flag} | {probe} | {e['load']} |")
     out += _summary(ratios, args)
     out += ["", "Parameter counts: " + ("equal on both sides for every model."
                                         if not mismatch else
