@@ -12,7 +12,11 @@ Erwin with and without ``remat``; batch 1 (as the peer comparison of issue 17) a
 what it frees) and the parent runs rounds alternating the two (glibc, tcmalloc, glibc, ...);
 in a round a worker times ``--steps`` steps. Printed per case: the median and range of the
 step time over all rounds, the minor page faults per step (``resource.getrusage().ru_minflt``
-deltas around each step) and the ratio to the plain form under the same allocator.
+deltas around each step) and the ratio to the plain form under the same allocator (to the
+model's first case run where its plain form is not among ``--variants``). With
+``--pair-remat`` each ``remat`` case runs in one worker with the same variant without it, the
+two alternating within every round (order flipped round by round), and the step-time cost of
+remat is printed: remat / no remat, ratio of the medians and range of the per-round ratios.
 
 Memory. The compiled peak of the training step (``jax.jit(step).lower(...).compile()
 .memory_analysis()``: temporaries + arguments + outputs - aliased) per model at its study batch
@@ -29,7 +33,8 @@ the speed depends on the node count and the neighbour cap, not on the physics.
 Usage::
 
     python benchmarks/train_step.py [--rounds 3] [--steps 2] [--sizes 977 2048]
-                                    [--variants NAME ...] [--skip-memory | --skip-speed]
+                                    [--variants NAME ...] [--pair-remat]
+                                    [--skip-memory | --skip-speed]
                                     [--out benchmarks/results/train_step_cpu.md]
 """
 
@@ -159,9 +164,10 @@ def _worker(cases: list[tuple[str, int]], steps: int) -> None:
         print(json.dumps({"compiled": variant, "nodes": n,
                           "s": round(time.perf_counter() - t0, 2)}), flush=True)
     print(json.dumps({"ready": True}), flush=True)
-    for _ in sys.stdin:
+    for i, _ in enumerate(sys.stdin):
         out = []
-        for (variant, n), entry in ready.items():
+        items = list(ready.items())
+        for (variant, n), entry in items if i % 2 == 0 else items[::-1]:  # flip the order
             step, state, data, key = entry
             for _ in range(steps):
                 faults = resource.getrusage(resource.RUSAGE_SELF).ru_minflt
@@ -171,7 +177,7 @@ def _worker(cases: list[tuple[str, int]], steps: int) -> None:
                 ms = 1e3 * (time.perf_counter() - t0)
                 faults = resource.getrusage(resource.RUSAGE_SELF).ru_minflt - faults
                 out.append({"variant": variant, "nodes": n, "ms": ms, "faults": faults,
-                            "finite": bool(np.isfinite(float(metrics["loss"])))})
+                            "round": i, "finite": bool(np.isfinite(float(metrics["loss"])))})
             entry[1] = state
         print(json.dumps({"round": out, "load": os.getloadavg()}), flush=True)
 
@@ -200,12 +206,13 @@ def _speed(args, tcmalloc: str | None, out: list[str]) -> None:
     results = {name: [] for name in allocators}
     loads = {}
     for n in args.sizes:
-        for variant in args.variants:
+        for group in _worker_groups(args.variants, args.pair_remat):
             # one worker pair per case: tcmalloc keeps what it frees, so a process that ran
-            # several 2,048-node cases grew past this machine's memory (OOM-killed)
+            # several 2,048-node cases grew past this machine's memory (OOM-killed); with
+            # --pair-remat a remat case shares its worker with the same variant without remat
             procs = {}
             for name, lib in allocators.items():
-                procs[name] = _start_worker([(variant, n)], args.steps, lib)
+                procs[name] = _start_worker([(v, n) for v in group], args.steps, lib)
                 _read(procs[name], "ready")  # one compiles at a time
             for _ in range(args.rounds):
                 for name, proc in procs.items():  # alternate the allocators round by round
@@ -216,12 +223,16 @@ def _speed(args, tcmalloc: str | None, out: list[str]) -> None:
             for proc in procs.values():
                 proc.stdin.close()
                 proc.wait()
-            loads[(variant, n)] = [round(x, 2) for x in os.getloadavg()]
-            print(f"# {variant} {n} done, load {loads[(variant, n)]}", flush=True)
+            for variant in group:
+                loads[(variant, n)] = [round(x, 2) for x in os.getloadavg()]
+            print(f"# {group} {n} done, load {loads[(variant, n)]}", flush=True)
     out += ["", f"## Training step, batch 1: {args.rounds} rounds x {args.steps} steps per case "
             "and allocator", "",
             "Cases run one after another; within a case the glibc and tcmalloc workers alternate "
-            "round by round. Load: 1, 5, 15-minute load average when the case finished.", "",
+            "round by round" + ("; a remat case shares its workers with the same variant without "
+                                "remat, the two alternating within each round (order flipped "
+                                "round by round)" if args.pair_remat else "")
+            + ". Load: 1, 5, 15-minute load average when the case finished.", "",
             "| model | nodes | variant | allocator | step ms median | range | faults/step "
             "(median) | vs plain, same allocator | load | loss finite |",
             "|---|---|---|---|---|---|---|---|---|---|"]
@@ -240,6 +251,41 @@ def _speed(args, tcmalloc: str | None, out: list[str]) -> None:
                            f"{statistics.median(x['faults'] for x in mine):.0f} | "
                            f"{med / plain_ms[model]:.2f} | {loads[(variant, n)]} | "
                            f"{all(x['finite'] for x in mine)} |")
+                print(out[-1], flush=True)
+    if args.pair_remat:
+        _remat_cost(args, results, out)
+
+
+def _worker_groups(variants: list[str], pair_remat: bool) -> list[list[str]]:
+    """The cases of each worker: one each, or a remat case with its base (``--pair-remat``)."""
+    if not pair_remat:
+        return [[v] for v in variants]
+    groups = [[REMAT_OF[v], v] for v in variants if REMAT_OF.get(v) in variants]
+    paired = {v for g in groups for v in g}
+    return groups + [[v] for v in variants if v not in paired]
+
+
+def _remat_cost(args, results: dict, out: list[str]) -> None:
+    """Step time with remat over the step time without, per model, allocator and size: the
+    ratio of the medians and the range of the per-round ratios (same worker, same round)."""
+    out += ["", "### Step-time cost of remat (paired in one worker, order flipped each round)",
+            "", "| model | nodes | allocator | no remat ms (median) | remat ms (median) | "
+            "remat / no remat (medians) | per-round ratios |", "|---|---|---|---|---|---|---|"]
+    for n in args.sizes:
+        for name, rows in results.items():
+            for remat, base in REMAT_OF.items():
+                if remat not in args.variants or base not in args.variants:
+                    continue
+                ms = {v: [x for x in rows if x["variant"] == v and x["nodes"] == n]
+                      for v in (base, remat)}
+                med = {v: statistics.median(x["ms"] for x in ms[v]) for v in ms}
+                per_round = [
+                    statistics.median(x["ms"] for x in ms[remat] if x["round"] == i)
+                    / statistics.median(x["ms"] for x in ms[base] if x["round"] == i)
+                    for i in sorted({x["round"] for x in ms[remat]})]
+                out.append(f"| {VARIANTS[remat][0]} | {n} | {name} | {med[base]:.0f} | "
+                           f"{med[remat]:.0f} | {med[remat] / med[base]:.2f} | "
+                           f"{min(per_round):.2f}-{max(per_round):.2f} |")
                 print(out[-1], flush=True)
 
 
@@ -269,6 +315,9 @@ def main() -> None:
     parser.add_argument("--sizes", nargs="+", type=int, default=[977, 2048])
     parser.add_argument("--variants", nargs="+", default=list(VARIANTS), choices=list(VARIANTS),
                         help="cases to run (default: all)", metavar="NAME")
+    parser.add_argument("--pair-remat", action="store_true",
+                        help="time each remat case in one worker with the same variant without "
+                             "remat, alternating, and print the remat / no remat step-time ratio")
     parser.add_argument("--skip-memory", action="store_true")
     parser.add_argument("--skip-speed", action="store_true")
     parser.add_argument("--out", default=None, help="markdown file to write")

@@ -163,7 +163,12 @@ class MeshGraphNet(nn.Module):
 
 @dataclasses.dataclass(frozen=True)
 class MeshGraphNetSurrogate(FlaxSurrogate):
-    """MeshGraphNet behind the common surrogate contract (radius graph without self loops)."""
+    """MeshGraphNet behind the common surrogate contract (radius graph without self loops).
+
+    Graph-local (every node interaction is an edge of the radius graph), so a training batch can
+    run as one flat graph (:mod:`thrombojax.simulator.flat`).
+    """
 
     module_cls = MeshGraphNet
     self_loops = False
+    graph_local = True

@@ -88,12 +88,17 @@ class FlaxSurrogate:
     Attributes:
         name: canonical registry name.
         config: the model's config dataclass.
+        graph_local (class attribute): every interaction between nodes goes through the radius
+            graph (a :class:`~thrombojax.graph.neighbors.NeighborList`), so the model may run a
+            batch as one flat graph (:mod:`thrombojax.simulator.flat`); False where a model
+            mixes all nodes of a sample (attention, a ball tree).
     """
 
     name: str
     config: Any
     module_cls: ClassVar[type[nn.Module]]
     self_loops: ClassVar[bool] = False
+    graph_local: ClassVar[bool] = False
 
     @property
     def module(self) -> nn.Module:

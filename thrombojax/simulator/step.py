@@ -2,8 +2,10 @@
 
 Every consumer (the single-step and k-step training losses, the ``lax.scan`` rollout, evaluation,
 the speed benchmark) calls the :class:`LearnedStep` made by :func:`make_step`; nothing else in the
-package writes this sequence. In the manner of jax-md's ``simulate`` factories the factory fixes
-the static part (the surrogate) and returns pure functions of arrays::
+package writes this sequence but :class:`thrombojax.simulator.flat.FlatStep`, the same step on a
+whole batch run as one flat graph (tested equal: ``tests/test_flat_batch.py``). In the manner
+of jax-md's ``simulate`` factories the factory fixes the static part (the surrogate) and returns
+pure functions of arrays::
 
     step = make_step(model)
     params = step.init(rng, x_prev, x_cur, node_type, mask)

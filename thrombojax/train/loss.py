@@ -24,20 +24,26 @@ solvers"): with ``pushforward = p > 0`` the step is first applied ``p`` times fr
 ``(s^_{t+p-1}, s^_{t+p})``; the model learns to correct the input distribution it creates in a
 rollout, at the cost of one forward pass per pushed step.
 
+:func:`flat_window_loss_terms` computes the same terms for a whole batch with the model run
+once on the batch's flat graph (:mod:`thrombojax.simulator.flat`).
+
 Sums and counts are returned (not means) so a batch, possibly split over devices, pools all its
 clot nodes: ``sum(sq) / sum(count)``.
 """
 
 from __future__ import annotations
 
+import functools
+
 import jax
 import jax.numpy as jnp
 
+from thrombojax.simulator.flat import FlatStep
 from thrombojax.simulator.rollout import unroll
 from thrombojax.simulator.step import LearnedStep, target_acceleration
 from thrombojax.types import TargetStats, clot_mask
 
-__all__ = ["window_loss_terms"]
+__all__ = ["window_loss_terms", "flat_window_loss_terms"]
 
 
 def window_loss_terms(
@@ -68,6 +74,45 @@ def window_loss_terms(
         ``{"loss_sum", "mse_sum", "count"}``: squared errors summed over clot nodes and averaged
         over steps and x, y, z; the number of clot nodes.
     """
+    frames, positions, outputs = _predict(step, params, stats, frames, node_type, mask, k=k,
+                                          pushforward=pushforward, train=train, rng=rng)
+    return _terms(step, stats, frames, node_type, mask, positions, outputs)
+
+
+def flat_window_loss_terms(
+    step: FlatStep,
+    params: dict,
+    stats: TargetStats,
+    frames: jax.Array,
+    node_type: jax.Array,
+    mask: jax.Array,
+    *,
+    k: int = 1,
+    pushforward: int = 0,
+    train: bool,
+    rng: jax.Array | None,
+) -> dict[str, jax.Array]:
+    """:func:`window_loss_terms` of every window of a batch, the model run on the flat graph.
+
+    Args:
+        step: the flat-batch step (:class:`thrombojax.simulator.flat.FlatStep`).
+        frames: ``[B, W, n_nodes, 3]``; node_type, mask: ``[B, n_nodes]``.
+        params, stats, k, pushforward, train: as :func:`window_loss_terms`.
+        rng: one dropout key for the whole batch.
+    Returns:
+        The terms of every window, each ``[B]`` (what ``jax.vmap(window_loss_terms)`` returns).
+    """
+    frames = jnp.moveaxis(frames, 1, 0)  # [W, B, N, 3]: the step maps [B, N, 3] frames
+    frames, positions, outputs = _predict(step, params, stats, frames, node_type, mask, k=k,
+                                          pushforward=pushforward, train=train, rng=rng)
+    per_window = functools.partial(_terms, step.step, stats)
+    return jax.vmap(per_window, in_axes=(1, 0, 0, 1, 1))(frames, node_type, mask, positions,
+                                                         outputs)
+
+
+def _predict(step, params, stats, frames, node_type, mask, *, k, pushforward, train, rng):
+    """The window's first ``k + 2`` frames after the push-forward steps, and the ``k``
+    predicted positions and outputs (``[k, ...]``); frames lead with the window axis ``W``."""
     step.require_dense("the training loss")
     need = pushforward + k + 2
     if k < 1 or pushforward < 0 or frames.shape[0] < need:
@@ -83,10 +128,15 @@ def window_loss_terms(
     frames = frames[:k + 2]
     if k == 1:
         out = step(params, stats, frames[0], frames[1], node_type, mask, train=train, rng=rng)
-        positions, outputs = out.positions[None], out.output[None]
-    else:
-        positions, outputs = unroll(step, params, stats, frames[0], frames[1], node_type, mask, k,
-                                    train=train, rng=rng)
+        return frames, out.positions[None], out.output[None]
+    positions, outputs = unroll(step, params, stats, frames[0], frames[1], node_type, mask, k,
+                                train=train, rng=rng)
+    return frames, positions, outputs
+
+
+def _terms(step, stats, frames, node_type, mask, positions, outputs):
+    """The loss terms of one window from its ``k + 2`` frames and ``k`` predictions."""
+    k = positions.shape[0]
     states = jnp.concatenate([frames[:2], positions[:-1]])  # s_{t-1+j}, j = 0 .. k
     truth = frames[2:2 + k]
     target = step.normalized_target(stats, target_acceleration(states[:-1], states[1:], truth),

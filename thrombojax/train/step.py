@@ -5,6 +5,9 @@ optional training noise, then the learned step of :mod:`thrombojax.simulator.ste
 times (:mod:`thrombojax.train.loss`), masked losses; the losses are pooled
 over all clot nodes of the batch (``sum / count``), differentiated and applied with the optax
 transformation (AdamW, warm-up + cosine, optional clipping: :mod:`thrombojax.train.schedule`).
+``flat_batch=True`` (off by default) runs the model once on the batch as one flat graph instead
+of ``vmap`` over the samples (:mod:`thrombojax.simulator.flat`; same loss and gradients, and no
+faster on the CPU beyond the spread between runs: ``benchmarks/results/flat_batch_cpu.md``).
 
 Data parallelism: :func:`data_mesh` builds a 1-D mesh ``("data",)`` over the local devices (or all
 devices of all hosts after ``jax.distributed.initialize()``); :func:`shard_batch` places the batch
@@ -28,6 +31,7 @@ from which :func:`shard_batch` keeps that host's slice.
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 from typing import Any
 
@@ -39,8 +43,9 @@ from jax.sharding import Mesh, NamedSharding
 from jax.sharding import PartitionSpec as P
 
 from thrombojax.models.registry import Surrogate
+from thrombojax.simulator.flat import FlatStep, flat_batch_ok
 from thrombojax.simulator.step import LearnedStep, make_step
-from thrombojax.train.loss import window_loss_terms
+from thrombojax.train.loss import flat_window_loss_terms, window_loss_terms
 from thrombojax.train.noise import add_training_noise
 from thrombojax.train.state import TrainState
 from thrombojax.types import TargetStats
@@ -98,6 +103,7 @@ def batch_loss(
     noise_gamma: float = 0.1,
     k: int = 1,
     pushforward: int = 0,
+    flat_batch: bool = False,
 ) -> tuple[jax.Array, dict[str, jax.Array]]:
     """Loss of a batch pooled over its clot nodes, and metrics.
 
@@ -109,6 +115,10 @@ def batch_loss(
         noise_std, noise_gamma: training noise (:mod:`thrombojax.train.noise`).
         k: steps of the unrolled loss (1: the single-step loss).
         pushforward: steps applied first without gradients (push-forward training).
+        flat_batch: run the model once on the batch as one flat graph
+            (:mod:`thrombojax.simulator.flat`) where the model allows it
+            (:func:`~thrombojax.simulator.flat.flat_batch_ok`); else, and by default,
+            ``jax.vmap`` over the samples. Same loss and gradients (``tests/test_flat_batch.py``).
     Returns:
         ``(loss, metrics)``: ``loss`` is the normalised-acceleration MSE; ``metrics`` holds
         ``loss``, ``mse`` (the study's metric, scaled coordinates) and ``nodes``.
@@ -130,7 +140,10 @@ def batch_loss(
             train=train, rng=model_key,
         )
 
-    if keys is None:
+    if flat_batch and flat_batch_ok(step):
+        terms = _flat_terms(step, params, stats, batch, keys, train=train, noise_std=noise_std,
+                            noise_gamma=noise_gamma, k=k, pushforward=pushforward)
+    elif keys is None:
         terms = jax.vmap(lambda f, t, m: one(f, t, m, None))(
             batch.frames, batch.node_type, batch.mask
         )
@@ -143,6 +156,27 @@ def batch_loss(
     return loss, metrics
 
 
+def _flat_terms(step, params, stats, batch, keys, *, train, noise_std, noise_gamma, k,
+                pushforward):
+    """The per-window loss terms with the model run once on the flat batch graph.
+
+    Each sample's noise key is the one the vmapped form draws (the first half of its split key),
+    so the noisy windows are the same; the model gets one key for the whole batch (the second
+    half of the first sample's split: the flat step has one dropout stream).
+    """
+    frames, model_key = batch.frames, None
+    if keys is not None:
+        pairs = jax.vmap(jax.random.split)(keys)  # [B, 2] keys: (noise, model) per sample
+        model_key = pairs[0, 1]
+        if train and noise_std > 0:
+            frames = jax.vmap(functools.partial(add_training_noise, std=noise_std,
+                                                gamma=noise_gamma))(
+                pairs[:, 0], frames, batch.node_type, batch.mask)
+    return flat_window_loss_terms(FlatStep(step), params, stats, frames, batch.node_type,
+                                  batch.mask, k=k, pushforward=pushforward, train=train,
+                                  rng=model_key)
+
+
 def make_train_step(
     model: Surrogate | LearnedStep,
     tx: optax.GradientTransformation,
@@ -153,6 +187,7 @@ def make_train_step(
     k: int = 1,
     pushforward: int = 0,
     donate: bool = True,
+    flat_batch: bool = False,
 ) -> Callable[[TrainState, Any, jax.Array], tuple[TrainState, dict]]:
     """Build the jitted ``train_step(state, batch, rng) -> (state, metrics)``.
 
@@ -164,6 +199,7 @@ def make_train_step(
         k: steps of the unrolled loss (1: single step).
         pushforward: steps applied first without gradients (push-forward training).
         donate: donate the old state's buffers to the new one.
+        flat_batch: the batch as one flat graph where the model allows it (:func:`batch_loss`).
     Returns:
         The jitted step. ``metrics`` adds ``grad_norm`` and ``lr``-independent scalars.
     """
@@ -175,6 +211,7 @@ def make_train_step(
             return batch_loss(
                 learned, params, stats, batch, rng, train=True,
                 noise_std=noise_std, noise_gamma=noise_gamma, k=k, pushforward=pushforward,
+                flat_batch=flat_batch,
             )
 
         (_, metrics), grads = jax.value_and_grad(loss_fn, has_aux=True)(state.params)
