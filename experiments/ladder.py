@@ -80,6 +80,9 @@ SMALL_MGN = {"hidden": 32, "processor_size": 5, "max_neighbors": 12}
 COMMON = {"batch_size": 4, "max_rotation": 0.0, "warmup_epochs": 2.0,
           "model_config": SMALL_MGN}
 NOISE = {"noise_std": 0.01}  # vessel radii
+# the rotation rung's recipe (the `rollout` recipe), shared by the ensemble rung's members
+ROTATION = {**NOISE, "pushforward_steps": 1, "rollout_steps": 3, "curriculum_epochs": 6,
+            "max_rotation": np.pi}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -99,17 +102,14 @@ RUNGS: tuple[Rung, ...] = (
     Rung("pushforward", {**NOISE, "pushforward_steps": 1}),
     Rung("kstep", {**NOISE, "pushforward_steps": 1, "rollout_steps": 3, "curriculum_epochs": 6}),
     Rung("guards", {}, guards=True, reuse="kstep"),
-    Rung("rotation", {**NOISE, "pushforward_steps": 1, "rollout_steps": 3,
-                      "curriculum_epochs": 6, "max_rotation": np.pi}, guards=True),
+    Rung("rotation", ROTATION, guards=True),
     Rung("frame", {**NOISE, "pushforward_steps": 1, "rollout_steps": 3,
                    "curriculum_epochs": 6, "frame": "vessel"}, guards=True),
     Rung("clip", {**NOISE, "pushforward_steps": 1, "rollout_steps": 3,
                   "curriculum_epochs": 6, "frame": "vessel", "grad_clip": 1.0}, guards=True),
     Rung("wall", {**NOISE, "pushforward_steps": 1, "rollout_steps": 3, "curriculum_epochs": 6,
                   "max_rotation": np.pi, "wall_features": 1.5}, guards=True),
-    Rung("ensemble", {**NOISE, "pushforward_steps": 1, "rollout_steps": 3,
-                      "curriculum_epochs": 6, "max_rotation": np.pi}, guards=True,
-         reuse="rotation", members=3),
+    Rung("ensemble", ROTATION, guards=True, reuse="rotation", members=3),
 )
 
 
