@@ -13,7 +13,13 @@ gradient clipping (global norm 1); and the rotation rung + wall features (distan
 direction to the nearest vessel node, cut off at 1.5 vessel radii); and an ensemble of three
 models of the rotation rung's recipe (member 0 is that rung's model, members 1-2 the same
 recipe, epochs and seeds 1-2), rolled out together with guards, whose mean is the prediction
-and whose spread is scored against the error (``thrombojax.eval.uncertainty``). Every rung
+and whose spread is scored against the error (``thrombojax.eval.uncertainty``); and the
+rotation rung's recipe with a history of two frames (the step also reads the acceleration
+before t, ``thrombojax.simulator.step``), the same with a 3x smaller learning rate, and the
+history with the single-step loss (noise and rotations, no push-forward or k-step), the same
+reading three frames, an ensemble of three of it, and it with
+the noise as a random walk over all input frames (``noise_walk``), and an ensemble of three
+of that. Every rung
 trains the same small MeshGraphNet for the same wall-clock budget (the
 epoch count is calibrated on this machine by timing one epoch), then is measured on held-out
 simulations (the split is by name: the last rotation is outside the training range):
@@ -80,9 +86,12 @@ SMALL_MGN = {"hidden": 32, "processor_size": 5, "max_neighbors": 12}
 COMMON = {"batch_size": 4, "max_rotation": 0.0, "warmup_epochs": 2.0,
           "model_config": SMALL_MGN}
 NOISE = {"noise_std": 0.01}  # vessel radii
-# the rotation rung's recipe (the `rollout` recipe), shared by the ensemble rung's members
+# the rotation rung's recipe (the `rollout` recipe, the default of `thrombojax train`), shared
+# by the ensemble rung's members
 ROTATION = {**NOISE, "pushforward_steps": 1, "rollout_steps": 3, "curriculum_epochs": 6,
             "max_rotation": np.pi}
+# a step that also reads the acceleration before t, trained with the single-step loss
+HISTORY = {**NOISE, "max_rotation": np.pi, "history": 2}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -110,6 +119,14 @@ RUNGS: tuple[Rung, ...] = (
     Rung("wall", {**NOISE, "pushforward_steps": 1, "rollout_steps": 3, "curriculum_epochs": 6,
                   "max_rotation": np.pi, "wall_features": 1.5}, guards=True),
     Rung("ensemble", ROTATION, guards=True, reuse="rotation", members=3),
+    Rung("history", {**ROTATION, "history": 2}, guards=True),
+    Rung("history_lr", {**ROTATION, "history": 2, "lr": 3e-4}, guards=True),
+    Rung("history_1step", HISTORY, guards=True),
+    Rung("history3", {**HISTORY, "history": 3}, guards=True),
+    Rung("history_ensemble", HISTORY, guards=True, reuse="history_1step", members=3),
+    Rung("history_walk", {**HISTORY, "noise_walk": True}, guards=True),
+    Rung("walk_ensemble", {**HISTORY, "noise_walk": True}, guards=True, reuse="history_walk",
+         members=3),
 )
 
 
@@ -193,10 +210,11 @@ def _evaluate(runs: list[pathlib.Path], data: str, guards: bool,
         extra = {}
         if len(members) == 1:
             pred, corr = rollout_with_corrections(step, trained.params, trained.stats,
-                                                  pos[skip - 1], pos[skip], nt, mask, n,
+                                                  step.previous(pos, skip), pos[skip], nt, mask, n,
                                                   guards=g)
         else:
-            ens = ensemble_rollout(step, stack_params(params), trained.stats, pos[skip - 1],
+            ens = ensemble_rollout(step, stack_params(params), trained.stats,
+                                   step.previous(pos, skip),
                                    pos[skip], nt, mask, n,
                                    rollout_fn=guarded_unroll if g is not None else None,
                                    context=g)
@@ -250,6 +268,38 @@ def _table(results: dict) -> str:
                            "MSE@10 (r^2)", "MSE@full (r^2)", "MSE@full / CV",
                            "final centroid error (r)", "max clot outside",
                            "largest guard correction (r)", "epochs"], rows)
+
+
+def _members_alone(runs: list[pathlib.Path], data: str, guards: bool,
+                   n_nodes: int | None) -> list[dict]:
+    """Each member of an ensemble evaluated alone: how much one recipe varies with its seed."""
+    out = []
+    for run in runs:
+        mean = _evaluate([run], data, guards, n_nodes)["mean"]
+        seed = json.loads((run / "config.json").read_text())["train"]["seed"]
+        out.append({"seed": seed, "mse_full_ratio": mean["mse_full"] / mean["mse_full_cv"],
+                    "final_centroid_r": mean["final_centroid_r"],
+                    "mse1_phase_ratio": mean["mse1_phase"] / mean["mse1_phase_cv"],
+                    "max_outside": mean["max_outside"]})
+    return out
+
+
+def _seed_lines(results: dict) -> str:
+    """One line per ensemble rung: its members' rollouts alone (seed to seed spread)."""
+    lines = []
+    for name, res in results.items():
+        alone = res.get("members_alone")
+        if not alone:
+            continue
+
+        def join(key, fmt=".2f", alone=alone):
+            return " / ".join(f"{m[key]:{fmt}}" for m in alone)
+
+        seeds = ", ".join(str(m["seed"]) for m in alone)
+        lines.append(f"- {name}, each member alone (seeds {seeds}): MSE@full / CV "
+                     f"{join('mse_full_ratio')}; final centroid error {join('final_centroid_r')} "
+                     f"r; 1-step MSE / CV (rollout phase) {join('mse1_phase_ratio')}\n")
+    return "".join(lines)
 
 
 def _uncertainty_lines(results: dict) -> str:
@@ -324,7 +374,13 @@ def main(argv: list[str] | None = None) -> int:
         folder = out / rung.name
         done = folder / "result.json"
         if done.is_file():
-            results[rung.name] = json.loads(done.read_text())
+            res = json.loads(done.read_text())
+            if rung.members > 1 and "members_alone" not in res:  # results made before it
+                runs = _member_runs(rung, out, args.dataset, split, args.nodes)
+                res["members_alone"] = _members_alone(runs, args.dataset, rung.guards,
+                                                      args.nodes)
+                atomic_write_text(done, json.dumps(res, indent=1))
+            results[rung.name] = res
             continue
         folder.mkdir(exist_ok=True)
         t = time.perf_counter()
@@ -333,6 +389,8 @@ def main(argv: list[str] | None = None) -> int:
                         args.epochs, args.nodes)
         runs = _member_runs(rung, out, args.dataset, split, args.nodes)
         res = _evaluate(runs, args.dataset, rung.guards, args.nodes)
+        if rung.members > 1:
+            res["members_alone"] = _members_alone(runs, args.dataset, rung.guards, args.nodes)
         res.update(rung=dataclasses.asdict(rung) | {"train": {k: str(v) for k, v in
                                                                rung.train.items()}},
                    seconds=time.perf_counter() - t)
@@ -350,6 +408,7 @@ def main(argv: list[str] | None = None) -> int:
         "says fit M minutes on the machine; with `--epochs N`, exactly N)"
         + (f"; {args.nodes} nodes per simulation" if args.nodes else "") + ".\n\n"
         + (f"Uncertainty:\n{unc}\n" if (unc := _uncertainty_lines(results)) else "")
+        + (f"Seeds:\n{seeds}\n" if (seeds := _seed_lines(results)) else "")
         + "".join(f"- {k}: {v}\n" for k, v in env.items()))
     atomic_write_text(out / "ladder.json", json.dumps({"environment": env, "results": results},
                                                       indent=1))

@@ -66,3 +66,42 @@ def test_ensemble_rung_trains_members_like_the_reused_rung(tmp_path, monkeypatch
         assert out == tmp_path / rung.name / f"member_{seed}" / "run" == runs[seed]
         assert kw["seed"] == seed and kw["epochs"] == 4 and kw["test_sims"] == ["a"]
         assert {k: kw[k] for k in reused.train} == reused.train  # the same recipe
+
+
+def test_the_default_recipe_is_the_ladders_rotation_rung(monkeypatch):
+    """README and docs say `thrombojax train`'s default recipe is the ladder's rotation rung
+    (its best rung that rolls out well for every seed): the dicts must stay equal."""
+    from thrombojax.train.recipes import DEFAULT_RECIPE, recipe
+
+    ladder = _ladder(monkeypatch)
+    rungs = {r.name: r for r in ladder.RUNGS}
+    assert rungs["rotation"].train == recipe(DEFAULT_RECIPE)
+
+
+def test_members_alone_reports_every_seed(tmp_path, monkeypatch):
+    """An ensemble rung also scores each member alone (seed-to-seed spread of the recipe), and
+    the table gets one `Seeds:` line with those numbers."""
+    import json
+
+    ladder = _ladder(monkeypatch)
+    runs = []
+    for seed, ratio in ((0, 0.5), (1, 3.0)):
+        run = tmp_path / f"m{seed}" / "run"
+        run.mkdir(parents=True)
+        (run / "config.json").write_text(json.dumps({"train": {"seed": seed}}))
+        runs.append((run, ratio))
+    ratios = dict((str(r), x) for r, x in runs)
+
+    def fake_evaluate(rs, data, guards, n_nodes):
+        (run,) = rs
+        x = ratios[str(run)]
+        return {"mean": {"mse_full": x, "mse_full_cv": 1.0, "final_centroid_r": 10 * x,
+                         "mse1_phase": 0.5, "mse1_phase_cv": 1.0, "max_outside": 0.0}}
+
+    monkeypatch.setattr(ladder, "_evaluate", fake_evaluate)
+    alone = ladder._members_alone([r for r, _ in runs], "d.h5", True, None)
+    assert [m["seed"] for m in alone] == [0, 1]
+    assert [m["mse_full_ratio"] for m in alone] == [0.5, 3.0]
+    line = ladder._seed_lines({"ens": {"members_alone": alone}, "single": {}})
+    assert "ens" in line and "0.50 / 3.00" in line and "5.00 / 30.00 r" in line
+    assert "single" not in line and line.count("\n") == 1

@@ -55,6 +55,9 @@ def _add_train(sub) -> None:
                    "(learning-to-simulate / MeshGraphNets noise)")
     p.add_argument("--noise-gamma", type=NN_FLOAT, help="share of the noise the model learns to "
                    "remove from the next position (default 0.1)")
+    p.add_argument("--noise-walk", action="store_true", default=None, help="with --history "
+                   "H > 1: the noise is a random walk over all H input velocities "
+                   "(learning-to-simulate's), not on the current frame alone")
     p.add_argument("--seed", type=NN_INT, help="seed of initialisation, data order, augmentations")
     p.add_argument("--skip-frames", type=NN_INT, help="first frames never used as frame t of a "
                    "window (default 0: every window)")
@@ -75,6 +78,9 @@ def _add_train(sub) -> None:
     p.add_argument("--frame", choices=("global", "vessel"), help="frame of the learned step: "
                    "'vessel' works in the rigid vessel's principal axes (exactly invariant to "
                    "the vessel's orientation); default 'global'")
+    p.add_argument("--history", type=POS_INT, help="frames before t the learned step reads: "
+                   "1 (default) the velocity alone; H >= 2 also the H - 1 accelerations before "
+                   "t (they show the drive and damping that the velocity does not)")
     p.add_argument("--wall-features", type=NN_FLOAT, help="give clot nodes the distance and "
                    "direction to the nearest vessel node, cut off at this many vessel radii "
                    "(default 0: off)")
@@ -94,7 +100,7 @@ def _run_train(args) -> int:
     names = ("epochs", "batch_size", "lr", "warmup_epochs", "max_rotation",
              "nodes_per_sample", "bary_ratio", "noise_std", "seed", "skip_frames", "n_val",
              "n_test", "tiny", "rollout_steps", "noise_gamma", "pushforward_steps",
-             "curriculum_epochs", "frame", "wall_features")
+             "curriculum_epochs", "frame", "wall_features", "history", "noise_walk")
     overrides = {k: getattr(args, k) for k in names if getattr(args, k) is not None}
     from thrombojax.train.recipes import DEFAULT_RECIPE, recipe
 

@@ -101,7 +101,8 @@ def load_store(
         names: simulation names to load.
         scaling: the dataset's :class:`thrombojax.data.scaling.Scaling`.
         skip: first frames not used as the frame t (``window_times(..., skip=skip)``).
-        length: frames per window (3: single step; ``k + 2`` for a k-step loss).
+        length: frames per window (3: single step; ``k + 2`` for a k-step loss;
+            :attr:`thrombojax.train.config.TrainConfig.window_length` in general).
     Returns:
         The :class:`WindowStore`.
     """

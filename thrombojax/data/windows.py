@@ -4,7 +4,9 @@ A window of ``W >= 3`` frames is addressed by (simulation index, t), t its secon
 "current" frame of the first step), with ``1 <= t <= T - W + 1`` and ``t >= skip``, where
 ``skip`` is the number of leading frames left out (the dataset records its own, see
 :func:`thrombojax.study.skip_frames`). ``W = 3`` is the single-step sample (s_{t-1}, s_t, s_{t+1});
-a k-step unrolled loss needs ``W = k + 2``. Windows are slices of the stored trajectories
+a k-step unrolled loss needs ``W = k + 2`` (``P + k + H + 1`` with ``P`` push-forward steps and a
+step reading ``H`` previous frames, whose current frame is then the window's frame ``H``).
+Windows are slices of the stored trajectories
 (:func:`thrombojax.data.batching.make_batch`), never copies held per window.
 """
 

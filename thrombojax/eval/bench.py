@@ -150,7 +150,8 @@ def time_rollout(model: Surrogate, params: dict, stats: TargetStats, x_prev, x_c
     args = (params, stats, np.asarray(x_prev, np.float32), np.asarray(x_cur, np.float32),
             np.asarray(node_type, np.int32), np.ones(len(node_type), bool))
     if grid and step.grid is None:
-        step = allocate_grid(step, np.stack([args[2], args[3]]), args[4])
+        frames = np.concatenate([np.reshape(args[2], (-1, *args[3].shape)), args[3][None]])
+        step = allocate_grid(step, frames, args[4])
 
     def compile_and_run(s):
         t = time.perf_counter()
@@ -197,14 +198,22 @@ def _solver_times(datasets: list, measure_presets: list[str]) -> dict[str, float
     return out
 
 
-def _inputs(case: BenchCase, dataset, seed: int):
+def _inputs(case: BenchCase, dataset, seed: int, history: int = 1):
+    """``((x_prev, x_cur, node_type), source)``; ``x_prev [history, n, 3]`` when the step reads
+    more than one previous frame (the synthetic tube extends its velocity backwards)."""
     if dataset is None:
-        return synthetic_cloud(case.n_nodes, seed=seed), "synthetic bent tube"
+        x_prev, x_cur, node_type = synthetic_cloud(case.n_nodes, seed=seed)
+        if history > 1:
+            v = x_cur - x_prev
+            x_prev = np.stack([x_cur - (history - j) * v for j in range(history)])
+        return (x_prev, x_cur, node_type), "synthetic bent tube"
     name = dataset.names[0]
     pos, node_type = scaled_simulation(dataset, name, fit_scaling(dataset))
     t0 = min(max(study.skip_frames(dataset), 1), pos.shape[0] - 1)
     idx = subsample_indices(seed, node_type, case.n_nodes)
-    return (pos[t0 - 1, idx], pos[t0, idx], node_type[idx]), f"{dataset.path}:{name}"
+    lags = np.maximum(t0 + np.arange(-history, 0), 0)  # frame 0 repeated before the record
+    x_prev = pos[lags][:, idx] if history > 1 else pos[t0 - 1, idx]
+    return (x_prev, pos[t0, idx], node_type[idx]), f"{dataset.path}:{name}"
 
 
 def bench(
@@ -262,9 +271,10 @@ def bench(
         case = STUDY_CASES[case_name]
         if n_nodes is not None:
             case = dataclasses.replace(case, n_nodes=int(n_nodes))
-        (x_prev, x_cur, node_type), source = _inputs(case, ds, seed)
-        if model_name in runs:
-            trained = load_trained(runs[model_name])
+        trained = load_trained(runs[model_name]) if model_name in runs else None
+        history = 1 if trained is None else trained.step.history
+        (x_prev, x_cur, node_type), source = _inputs(case, ds, seed, history)
+        if trained is not None:
             model, params, stats, weights = trained.step, trained.params, trained.stats, "trained"
             config = run_config_label(runs[model_name], trained.config)
         else:

@@ -124,7 +124,8 @@ def rollout_simulation(
                           f"frame {t0}")
     idx = subsample_indices(seed, node_type, n_nodes or positions.shape[1])
     sub_type = np.asarray(node_type)[idx]
-    x_prev, x0 = positions[t0 - 1, idx], positions[t0, idx]
+    x_last, x0 = positions[t0 - 1, idx], positions[t0, idx]
+    x_prev = as_step(model).previous(positions, t0)[..., idx, :]  # the step's history
     mask = np.ones(idx.size, bool)
     guards = None if guard_radius is None else build_guards(
         positions[0], node_type, x0, sub_type, radius=guard_radius, wall_cells=wall_cells)
@@ -144,7 +145,7 @@ def rollout_simulation(
                                                      mask, n_steps, guards=guards)
         pred = np.asarray(traj)
     true = positions[t0 + 1:t0 + 1 + n_steps][:, idx]
-    base = constant_velocity_rollout(x_prev, x0, sub_type, mask, n_steps)
+    base = constant_velocity_rollout(x_last, x0, sub_type, mask, n_steps)
     clot = clot_mask(sub_type)
     wall = fit_vessel_wall(positions[0], node_type, wall_cells=wall_cells)  # full res, rigid
     curves, summary = {}, {}
@@ -166,5 +167,5 @@ def rollout_simulation(
     if spread is not None:  # how well the ensemble's spread predicts its error (scaled units)
         curves[label]["spread"] = spread[:, clot].mean(axis=1)
         summary[label]["uncertainty"] = uncertainty_summary(pred, spread, true, sub_type)
-    return RolloutResult(name, t0, idx, sub_type, np.stack([x_prev, x0]), pred, true, base,
+    return RolloutResult(name, t0, idx, sub_type, np.stack([x_last, x0]), pred, true, base,
                          curves, summary, spread)

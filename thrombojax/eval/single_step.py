@@ -194,7 +194,10 @@ def ensemble_single_step_errors(
 ) -> np.ndarray:
     """:func:`single_step_errors` of the member mean of M models (a deep ensemble's one-step
     prediction: every member predicts s_{t+1} from the true s_{t-1}, s_t; the M predictions
-    are averaged). One member gives :func:`single_step_errors` exactly.
+    are averaged). One member gives :func:`single_step_errors` exactly. A step with a history
+    of H frames reads the true s_{t-H} .. s_{t-1} (frame 0 repeated before the record starts,
+    :meth:`~thrombojax.simulator.step.LearnedStep.previous`), so every model is scored on the
+    same windows.
 
     Args:
         params_list: M >= 1 parameter trees sharing ``step`` and ``stats``.
@@ -215,7 +218,7 @@ def ensemble_single_step_errors(
     for lo in range(0, times.size, batch_size):
         t = times[lo:lo + batch_size]
         t_pad = np.concatenate([t, np.full(batch_size - t.size, t[-1])])
-        preds = [np.asarray(_batched_next(step, params, stats, positions[t_pad - 1],
+        preds = [np.asarray(_batched_next(step, params, stats, step.previous(positions, t_pad),
                                           positions[t_pad], jnp.asarray(node_type), mask))
                  for params in params_list]
         nxt = preds[0] if len(preds) == 1 else np.mean(preds, axis=0)

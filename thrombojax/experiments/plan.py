@@ -147,7 +147,7 @@ def train_windows(run: Run, kind: str = "sweep") -> int:
         n_train = len(cfg.train_sims) or preset.n_sims - len(cfg.val_sims) - len(cfg.test_sims)
     else:
         n_train = max(preset.n_sims - cfg.n_val - cfg.n_test, 1)
-    length = cfg.pushforward_steps + cfg.rollout_steps + 2
+    length = cfg.window_length
     per_sim = max(preset.n_frames + 1 - length + 1 - cfg.skip_frames, 0)
     return n_train * per_sim
 

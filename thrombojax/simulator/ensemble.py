@@ -189,15 +189,16 @@ chunks of that many members. One compilation per (step, M, N, ``n_steps``, flags
 ``rollout_fn``, ``member_batch``); ``ensemble_jit._cache_size()`` counts them."""
 
 
-def _check(n_steps: int, x0_prev, x0, node_type, mask) -> tuple:
+def _check(step: LearnedStep, n_steps: int, x0_prev, x0, node_type, mask) -> tuple:
     if int(n_steps) < 1:
         raise ConfigError(f"ensemble rollout: n_steps must be >= 1, got {n_steps}")
     x0_prev, x0 = jnp.asarray(x0_prev, jnp.float32), jnp.asarray(x0, jnp.float32)
     node_type, mask = jnp.asarray(node_type, jnp.int32), jnp.asarray(mask, bool)
     n = node_type.shape[0]
-    if x0_prev.shape != (n, 3) or x0.shape != (n, 3) or mask.shape != (n,):
-        raise ConfigError(f"ensemble rollout: x0_prev {x0_prev.shape}, x0 {x0.shape}, mask "
-                          f"{mask.shape} do not fit {n} nodes ([N, 3], [N, 3], [N])")
+    if x0.shape != (n, 3) or mask.shape != (n,):
+        raise ConfigError(f"ensemble rollout: x0 {x0.shape}, mask {mask.shape} do not fit {n} "
+                          f"nodes ([N, 3], [N])")
+    step.check_previous(x0_prev, n, "ensemble rollout")
     return x0_prev, x0, node_type, mask
 
 
@@ -240,7 +241,8 @@ def ensemble_rollout(
         model: the surrogate (or its :class:`LearnedStep`) shared by all members.
         params_stack: parameters with a leading member axis ``[M, ...]`` (:func:`stack_params`).
         stats: target statistics shared by all members (an ensemble trained on one split).
-        x0_prev, x0: ``[N, 3]`` scaled s_{t0-1}, s_{t0}.
+        x0_prev, x0: ``[N, 3]`` scaled s_{t0-1}, s_{t0} (``x0_prev [H, N, 3]`` for a step with
+            a history of H frames).
         node_type: ``[N]`` NodeType values. mask: ``[N]`` real-node mask.
         n_steps: number of predicted frames (static).
         noise_std: also perturb each member's s_{t0} (clot nodes) by this Gaussian std, in
@@ -254,12 +256,12 @@ def ensemble_rollout(
         The :class:`EnsembleRollout` (``members [M, n_steps, N, 3]``).
     """
     step = as_step(model)
-    x0_prev, x0, node_type, mask = _check(n_steps, x0_prev, x0, node_type, mask)
+    x0_prev, x0, node_type, mask = _check(step, n_steps, x0_prev, x0, node_type, mask)
     m = n_members(params_stack)
     noisy = float(noise_std) > 0.0
     if noisy:
         x0 = _perturb(rng, x0, node_type, mask, m, float(noise_std))
-        x0_prev = jnp.broadcast_to(x0_prev, x0.shape)
+        x0_prev = jnp.broadcast_to(x0_prev, (m, *x0_prev.shape))
     return ensemble_jit(step, params_stack, stats, x0_prev, x0, node_type, mask, context,
                         int(n_steps), params_batched=True, state_batched=noisy,
                         rollout_fn=rollout_fn or plain_unroll,
@@ -290,7 +292,8 @@ def stochastic_rollout(
 
     Args:
         model, params, stats: the surrogate (or its learned step), its parameters, statistics.
-        x0_prev, x0: ``[N, 3]`` scaled s_{t0-1}, s_{t0}.
+        x0_prev, x0: ``[N, 3]`` scaled s_{t0-1}, s_{t0} (``x0_prev [H, N, 3]`` for a step with
+            a history of H frames).
         node_type: ``[N]``. mask: ``[N]`` real nodes. n_steps: predicted frames (static).
         n_members: M >= 1. noise_std: perturbation std, > 0 (scaled units). rng: PRNG key.
         rollout_fn, context, member_batch: as in :func:`ensemble_rollout`.
@@ -298,12 +301,12 @@ def stochastic_rollout(
         The :class:`EnsembleRollout` (``members [M, n_steps, N, 3]``).
     """
     step = as_step(model)
-    x0_prev, x0, node_type, mask = _check(n_steps, x0_prev, x0, node_type, mask)
+    x0_prev, x0, node_type, mask = _check(step, n_steps, x0_prev, x0, node_type, mask)
     if int(n_members) < 1 or not float(noise_std) > 0.0:
         raise ConfigError(f"stochastic rollout: needs n_members >= 1 and noise_std > 0, got "
                           f"{n_members} and {noise_std}")
     starts = _perturb(rng, x0, node_type, mask, int(n_members), float(noise_std))
-    prevs = jnp.broadcast_to(x0_prev, starts.shape)
+    prevs = jnp.broadcast_to(x0_prev, (starts.shape[0], *x0_prev.shape))
     return ensemble_jit(step, params, stats, prevs, starts, node_type, mask, context,
                         int(n_steps), params_batched=False, state_batched=True,
                         rollout_fn=rollout_fn or plain_unroll,

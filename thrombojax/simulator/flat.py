@@ -39,8 +39,9 @@ __all__ = ["FlatStep", "flat_batch_ok", "flatten_graphs"]
 
 
 def flat_batch_ok(step: LearnedStep) -> bool:
-    """Whether the step's surrogate gives the same outputs on a flat batch graph."""
-    return bool(getattr(step.model, "graph_local", False))
+    """Whether the step's surrogate gives the same outputs on a flat batch graph (and the step
+    reads one previous frame: the flat step does not carry a history)."""
+    return bool(getattr(step.model, "graph_local", False)) and step.history == 1
 
 
 def flatten_graphs(graphs: NeighborList) -> NeighborList:
@@ -75,10 +76,23 @@ class FlatStep:
     step: LearnedStep
 
     def __post_init__(self) -> None:
+        if self.step.history != 1:
+            raise ConfigError(f"the flat batch graph runs steps with one previous frame; this "
+                              f"step reads history = {self.step.history}: batch it with "
+                              f"jax.vmap instead (flat_batch=False)")
         if not flat_batch_ok(self.step):
             raise ConfigError(f"model '{self.step.name}' mixes the nodes of a sample outside its "
                               f"neighbour list, so a flat batch graph would mix the samples; "
                               f"batch it with jax.vmap instead")
+
+    @property
+    def history(self) -> int:
+        """Previous frames the step reads (always 1: see ``__post_init__``)."""
+        return 1
+
+    def shift(self, x_prev: jax.Array, x_cur: jax.Array) -> jax.Array:
+        """As :meth:`LearnedStep.shift` (one previous frame: ``x_cur``)."""
+        return x_cur
 
     @property
     def name(self) -> str:
@@ -109,7 +123,7 @@ class FlatStep:
         b, n = mask.shape
 
         def prepare(p, c, t, m):
-            inputs = step._inputs(step.frame_of(c, t, m), stats.velocity_std, p, c, t, m)
+            inputs = step._inputs(step.frame_of(c, t, m), stats, p, c, t, m)
             return inputs, step.build_graph(inputs)
 
         inputs, graphs = jax.vmap(prepare)(x_prev, x_cur, node_type, mask)

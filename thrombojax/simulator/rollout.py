@@ -71,7 +71,8 @@ def unroll(
 
     Args:
         step: the learned simulator. params, stats: its variables and statistics.
-        x_prev, x_cur: ``[n_nodes, 3]`` scaled s_{t0-1}, s_{t0}.
+        x_prev, x_cur: ``[n_nodes, 3]`` scaled s_{t0-1}, s_{t0} (a step with ``history``
+            H > 1: ``x_prev [H, n_nodes, 3]``, see :meth:`LearnedStep.previous`).
         node_type: ``[n_nodes]``. mask: ``[n_nodes]`` real nodes.
         n_steps: number of steps (static).
         train: training mode (dropout). rng: dropout key, folded with the step index.
@@ -95,7 +96,8 @@ def _scan(step, params, stats, x_prev, x_cur, node_type, mask, n_steps, *, train
         key = None if rng is None else jax.random.fold_in(rng, i)
         out = step(params, stats, prev, cur, node_type, mask, train=train, rng=key)
         nxt, corrections = (out.positions, {}) if guards is None else guards.apply(out.positions)
-        return (cur, nxt, overflow | out.overflow), (nxt, out.output, corrections)
+        return (step.shift(prev, cur), nxt, overflow | out.overflow), (nxt, out.output,
+                                                                      corrections)
 
     (_, _, overflow), (positions, outputs, corrections) = jax.lax.scan(
         body, (x_prev, x_cur, jnp.zeros((), bool)), jnp.arange(n_steps))
@@ -150,7 +152,8 @@ def rollout(
     Args:
         model: a surrogate or its :class:`LearnedStep`.
         params, stats: its parameters and target statistics.
-        x0_prev: ``[n_nodes, 3]`` scaled positions s_{t0-1}.
+        x0_prev: ``[n_nodes, 3]`` scaled positions s_{t0-1} (a step with ``history`` H > 1:
+            ``[H, n_nodes, 3]``, :meth:`LearnedStep.previous`).
         x0: ``[n_nodes, 3]`` scaled positions s_{t0}.
         node_type: ``[n_nodes]`` NodeType values. mask: ``[n_nodes]`` real-node mask.
         n_steps: number of predicted frames (static).
@@ -191,6 +194,7 @@ def rollout_with_corrections(
     step = as_step(model)
     if int(n_steps) < 1:
         raise ConfigError(f"rollout: n_steps must be >= 1, got {n_steps}")
+    step.check_previous(x0_prev, np.shape(x0)[0], "rollout")
     args = (params, stats, jnp.asarray(x0_prev, jnp.float32), jnp.asarray(x0, jnp.float32),
             jnp.asarray(node_type, jnp.int32), jnp.asarray(mask, bool))
 

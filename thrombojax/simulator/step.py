@@ -34,6 +34,17 @@ clot node's input the distance and direction to its nearest vessel node
 (:func:`thrombojax.graph.wall_nodes.wall_node_features`), so the model knows where the wall is
 even when no vessel node is among its graph neighbours.
 
+History: ``make_step(model, history=H)`` (``H >= 2``) also gives the model the accelerations of
+the ``H - 1`` steps before t, ``a_{t-j} = s_{t-j+1} - 2 s_{t-j} + s_{t-j-1}`` (in the step's frame,
+divided by one number, the RMS of ``stats.std``), as extra node features. The dynamics carry
+state the current velocity does not show (the drive ramps in time; damping, friction and drive
+differ per simulation), and the last acceleration is its best witness: extrapolating it alone is
+0.59x constant velocity in one step on BendVessel's rollout phase, better than any
+one-velocity model we trained (``docs/rollouts.md``). ``x_prev`` is then ``[H, n_nodes, 3]``,
+the frames ``s_{t-H} .. s_{t-1}`` oldest first (:meth:`LearnedStep.previous` takes them from a
+trajectory, :meth:`LearnedStep.shift` advances them in a rollout); ``H = 1`` keeps
+``x_prev [n_nodes, 3]`` = s_{t-1}, unchanged.
+
 Full resolution: ``make_step(model, grid=spec)`` carries a static cell-grid
 :class:`~thrombojax.graph.grid.GridSpec` to the model's radius search, which uses it where it pays
 (``N >= AUTO_GRID_MIN_NODES`` and fewer candidates than the dense search,
@@ -51,6 +62,7 @@ import functools
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 from flax import struct
 
 from thrombojax.errors import ConfigError
@@ -68,6 +80,7 @@ __all__ = [
     "make_input",
     "target_acceleration",
     "integrate",
+    "past_accelerations",
 ]
 
 
@@ -152,12 +165,15 @@ class LearnedStep:
             see the module docstring).
         wall_cutoff: cutoff of the wall features in scaled units (0: no wall features).
         grid: cell grid of the model's radius graph, in the step's frame (None: dense search).
+        history: frames before t the step reads (1: s_{t-1}, the velocity alone; H >= 2: also
+            the H - 1 accelerations before t, see the module docstring).
     """
 
     model: Surrogate
     frame: str = "global"
     wall_cutoff: float = 0.0
     grid: GridSpec | None = None
+    history: int = 1
 
     def __post_init__(self) -> None:
         if self.frame not in FRAMES:
@@ -166,6 +182,40 @@ class LearnedStep:
         if not (self.wall_cutoff >= 0 and self.wall_cutoff < float("inf")):
             raise ConfigError(f"learned step: wall_cutoff must be a finite number >= 0, "
                               f"got {self.wall_cutoff!r}")
+        if not isinstance(self.history, int) or isinstance(self.history, bool) or \
+                self.history < 1:
+            raise ConfigError(f"learned step: history must be an int >= 1 (frames before t), "
+                              f"got {self.history!r}")
+
+    def previous(self, positions, t):
+        """The ``x_prev`` of frame(s) ``t`` of a trajectory ``positions [T, n_nodes, 3]``:
+        ``positions[t - 1]`` (history 1) or ``positions[t - H .. t - 1]`` stacked on an axis
+        after ``t``'s (``[..., H, n_nodes, 3]``). Frames before 0 are frame 0 (the clot at rest
+        before the record starts). ``t`` is an int or an int array, every ``t >= 1``."""
+        t = np.asarray(t)
+        if np.any(t < 1):
+            raise ConfigError(f"learned step: frame t = {t.min()} has no previous frame (t >= 1)")
+        if self.history == 1:
+            return positions[t - 1]
+        lags = np.arange(-self.history, 0)
+        return positions[np.maximum(t[..., None] + lags, 0)]
+
+    def last_previous(self, x_prev: jax.Array) -> jax.Array:
+        """s_{t-1} of an ``x_prev`` (see :meth:`previous`)."""
+        return x_prev if self.history == 1 else x_prev[..., -1, :, :]
+
+    def shift(self, x_prev: jax.Array, x_cur: jax.Array) -> jax.Array:
+        """The ``x_prev`` of the next step: ``x_cur`` (history 1), else the last H frames."""
+        if self.history == 1:
+            return x_cur
+        return jnp.concatenate([x_prev[..., 1:, :, :], x_cur[..., None, :, :]], axis=-3)
+
+    def check_previous(self, x_prev, n_nodes: int, what: str) -> None:
+        """Raise :class:`ConfigError` if ``x_prev`` does not have this step's history shape."""
+        want = (n_nodes, 3) if self.history == 1 else (self.history, n_nodes, 3)
+        if tuple(np.shape(x_prev)) != want:
+            raise ConfigError(f"{what}: the step reads {self.history} previous frame(s), so "
+                              f"x_prev must be {want}, got {tuple(np.shape(x_prev))}")
 
     @property
     def name(self) -> str:
@@ -202,15 +252,22 @@ class LearnedStep:
         """The model input of frame t (velocity normalised by ``stats.velocity_std``), in the
         step's frame, with the wall features when the step has them."""
         frame = self.frame_of(x_cur, node_type, mask)
-        return self._inputs(frame, stats.velocity_std, x_prev, x_cur, node_type, mask)
+        return self._inputs(frame, stats, x_prev, x_cur, node_type, mask)
 
-    def _inputs(self, frame, velocity_scale, x_prev, x_cur, node_type, mask) -> ModelInput:
+    def _inputs(self, frame, stats, x_prev, x_cur, node_type, mask) -> ModelInput:
+        """``stats`` None (initialisation): unit scales."""
         if frame is not None:
             x_prev, x_cur = frame.points(x_prev), frame.points(x_cur)
-        inputs = make_input(x_prev, x_cur, node_type, mask, velocity_scale)
+        velocity_scale = 1.0 if stats is None else stats.velocity_std
+        inputs = make_input(self.last_previous(x_prev), x_cur, node_type, mask, velocity_scale)
+        extra = []
+        if self.history > 1:
+            extra.append(past_accelerations(x_prev, x_cur, mask, 1.0 if stats is None else
+                                            jnp.sqrt(jnp.mean(stats.std ** 2))))
         if self.wall_cutoff > 0:
-            extra = wall_node_features(x_cur, node_type, mask, cutoff=self.wall_cutoff)
-            inputs = inputs.replace(extra=extra)
+            extra.append(wall_node_features(x_cur, node_type, mask, cutoff=self.wall_cutoff))
+        if extra:
+            inputs = inputs.replace(extra=jnp.concatenate(extra, axis=-1))
         return inputs
 
     def normalized_target(
@@ -246,13 +303,13 @@ class LearnedStep:
             The :class:`StepOutput`.
         """
         frame = self.frame_of(x_cur, node_type, mask)
-        inputs = self._inputs(frame, stats.velocity_std, x_prev, x_cur, node_type, mask)
+        inputs = self._inputs(frame, stats, x_prev, x_cur, node_type, mask)
         graph = self.build_graph(inputs)
         out = self.model.apply(params, inputs, graph, train=train, rng=rng)
         accel = stats.denormalize(out)
         if frame is not None:
             accel = frame.vectors_to_global(accel)
-        x_next = integrate(x_prev, x_cur, accel, node_type, mask)
+        x_next = integrate(self.last_previous(x_prev), x_cur, accel, node_type, mask)
         return StepOutput(positions=x_next, output=out, overflow=graph_overflow(graph))
 
     def init(
@@ -266,13 +323,26 @@ class LearnedStep:
 
 @functools.partial(jax.jit, static_argnums=0)
 def _init(step: LearnedStep, rng, x_prev, x_cur, node_type, mask) -> dict:
-    inputs = step._inputs(step.frame_of(x_cur, node_type, mask), 1.0, x_prev, x_cur, node_type,
+    inputs = step._inputs(step.frame_of(x_cur, node_type, mask), None, x_prev, x_cur, node_type,
                           mask)
     return step.model.init(rng, inputs, step.build_graph(inputs))
 
 
 def make_step(model: Surrogate, frame: str = "global", wall_cutoff: float = 0.0,
-              grid: GridSpec | None = None) -> LearnedStep:
+              grid: GridSpec | None = None, history: int = 1) -> LearnedStep:
     """The learned simulator of a surrogate in ``frame``, with wall features when
-    ``wall_cutoff > 0`` and the cell ``grid`` where it pays (see the module docstring)."""
-    return LearnedStep(model=model, frame=frame, wall_cutoff=float(wall_cutoff), grid=grid)
+    ``wall_cutoff > 0``, the cell ``grid`` where it pays and ``history`` previous frames (see
+    the module docstring)."""
+    return LearnedStep(model=model, frame=frame, wall_cutoff=float(wall_cutoff), grid=grid,
+                       history=history)
+
+
+def past_accelerations(x_prev: jax.Array, x_cur: jax.Array, mask: jax.Array,
+                       scale: jax.Array | float) -> jax.Array:
+    """The history features: ``[n_nodes, 3 (H - 1)]`` accelerations ``a_{t-H+1} .. a_{t-1}`` of
+    the frames ``x_prev [H, n_nodes, 3]`` (oldest first) and ``x_cur``, divided by ``scale``,
+    zero on padded nodes (and on the rigid vessel, whose acceleration is zero)."""
+    frames = jnp.concatenate([x_prev, x_cur[None]])
+    acc = (frames[2:] - 2.0 * frames[1:-1] + frames[:-2]) / scale  # [H - 1, N, 3]
+    acc = jnp.where(mask[None, :, None], acc, 0.0)
+    return jnp.moveaxis(acc, 0, 1).reshape(x_cur.shape[0], -1)

@@ -42,6 +42,7 @@ _RULES: dict[str, tuple[str, float, bool, bool]] = {
     "rollout_steps": ("int", 1, True, False),
     "pushforward_steps": ("int", 0, True, False),
     "curriculum_epochs": ("float", 0.0, True, False),
+    "history": ("int", 1, True, False),
 }
 
 
@@ -73,7 +74,7 @@ def check_train_values(cfg: Any) -> None:
 
     Also: the memory ``bary_ratio`` asks for even on one window
     (:func:`thrombojax.train.memory.check_train_memory`; the training loop checks again with the
-    dataset's sizes), ``tiny`` a boolean, ``model_config`` an object.
+    dataset's sizes), ``tiny`` and ``noise_walk`` booleans, ``model_config`` an object.
     """
     for name in _RULES:
         if hasattr(cfg, name):
@@ -82,7 +83,9 @@ def check_train_values(cfg: Any) -> None:
         n_windows=1, n_val_windows=0, bary_ratio=cfg.bary_ratio, batch_size=cfg.batch_size or 1,
         budget=1, length=3, max_neighbors=cfg.bary_max_neighbors,
     ), values={"bary_ratio": float(cfg.bary_ratio), "bary_max_neighbors": cfg.bary_max_neighbors})
-    if not isinstance(cfg.tiny, bool):
-        raise ConfigError(f"--tiny (tiny) must be true or false, got {cfg.tiny!r}")
+    for flag in ("tiny", "noise_walk"):
+        if not isinstance(getattr(cfg, flag, False), bool):
+            raise ConfigError(f"{_option(flag)} ({flag}) must be true or false, got "
+                              f"{getattr(cfg, flag)!r}")
     if not isinstance(cfg.model_config, dict):
         raise ConfigError(f"model_config must be a JSON object, got {cfg.model_config!r}")

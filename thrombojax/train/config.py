@@ -52,6 +52,8 @@ class TrainConfig:
             :func:`thrombojax.data.radius.vessel_radius`, converted to scaled coordinates);
             MeshGraphNets' recipe, learning-to-simulate's random walk with one velocity.
         noise_gamma: fraction of the noise the model learns to remove from the next position.
+        noise_walk: with ``history > 1``, the noise is a random walk over every input frame
+            (learning-to-simulate's), not on s_t alone (:mod:`thrombojax.train.noise`).
         seed: initialisation, data order, augmentations.
         split_seed: which simulations are validation / test.
         n_val, n_test: simulations held out for validation / test.
@@ -60,7 +62,7 @@ class TrainConfig:
         skip_frames: first frames never used as the frame t of a window (default 0: every
             window, the study's single-step setting).
         rollout_steps: k of the k-step unrolled loss (1: the single-step loss; windows of
-            ``pushforward_steps + k + 2`` frames).
+            ``pushforward_steps + k + history + 1`` frames, :attr:`window_length`).
         pushforward_steps: steps applied without gradients before the loss steps
             (push-forward training; 0: off).
         curriculum_epochs: grow k linearly from 1 to ``rollout_steps`` over this many epochs
@@ -72,6 +74,9 @@ class TrainConfig:
         wall_features: cutoff, in vessel radii, of the per-node distance and direction to the
             nearest vessel node appended to the clot nodes' inputs (0: off;
             :func:`thrombojax.graph.wall_nodes.wall_node_features`).
+        history: frames before t the learned step reads (1: the velocity alone; H >= 2: also
+            the H - 1 accelerations before t, :mod:`thrombojax.simulator.step`); windows grow
+            by H - 1 frames.
         tiny: start from the model's tiny config (tests, smoke runs).
         model_config: overrides of the model config fields (architecture, graph radius).
         checkpoint_every: also save the last checkpoint every this many steps (0: each epoch).
@@ -90,6 +95,7 @@ class TrainConfig:
     bary_max_neighbors: int = 16
     noise_std: float = 0.0
     noise_gamma: float = 0.1
+    noise_walk: bool = False
     seed: int = 0
     split_seed: int = 0
     n_val: int = 2
@@ -103,6 +109,7 @@ class TrainConfig:
     curriculum_epochs: float = 0.0
     frame: str = "global"
     wall_features: float = 0.0
+    history: int = 1
     tiny: bool = False
     model_config: dict = dataclasses.field(default_factory=dict)
     checkpoint_every: int = 0
@@ -130,6 +137,11 @@ class TrainConfig:
             raise ConfigError(f"skip_frames must be >= 0, got {self.skip_frames}")
         if self.frame not in FRAMES:
             raise ConfigError(f"frame must be one of {list(FRAMES)}, got {self.frame!r}")
+
+    @property
+    def window_length(self) -> int:
+        """Frames per training window: the step's history, s_t, push-forward and loss steps."""
+        return self.pushforward_steps + self.rollout_steps + self.history + 1
 
     def replace(self, **changes: Any) -> TrainConfig:
         """A copy with some fields changed; unknown fields raise :class:`ConfigError`."""

@@ -179,7 +179,7 @@ def train(
     else:
         split = split_simulations(list(ds.names), n_test=cfg.n_test, n_val=cfg.n_val,
                                   seed=cfg.split_seed)
-    length = cfg.pushforward_steps + cfg.rollout_steps + 2
+    length = cfg.window_length
     train_store = load_store(ds, split.train, scaling, skip=cfg.skip_frames, length=length)
     val_store = (load_store(ds, split.val, scaling, skip=cfg.skip_frames, length=length)
                  if split.val else None)
@@ -217,7 +217,7 @@ def train(
     radius = (vessel_radius(ds) / float(scaling.scale)
               if cfg.noise_std > 0 or cfg.wall_features > 0 else 0.0)
     wall_cutoff = cfg.wall_features * radius
-    step_fn = make_step(model, cfg.frame, wall_cutoff)
+    step_fn = make_step(model, cfg.frame, wall_cutoff, history=cfg.history)
     state = init_state(step_fn, tx, init_key, batch_of(plan_of(epoch=0)[0]))
     run_config = {
         **RunConfig(model=model_name, dataset=str(pathlib.Path(dataset_path).resolve()),
@@ -250,7 +250,8 @@ def train(
         k = rollout_steps_at(epoch, cfg.rollout_steps, cfg.curriculum_epochs)
         if k not in train_steps:  # one compilation per k of the curriculum
             train_steps[k] = make_train_step(step_fn, tx, stats, noise_std=noise_std,
-                                             noise_gamma=cfg.noise_gamma, k=k,
+                                             noise_gamma=cfg.noise_gamma,
+                                             noise_walk=cfg.noise_walk, k=k,
                                              pushforward=cfg.pushforward_steps)
         return train_steps[k]
 

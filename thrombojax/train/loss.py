@@ -64,8 +64,9 @@ def window_loss_terms(
     Args:
         step: the learned simulator (:func:`thrombojax.simulator.step.make_step`).
         params: the surrogate's variables. stats: acceleration normalisation statistics.
-        frames: ``[W, n_nodes, 3]`` (s_{t-1}, s_t, ..., s_{t+W-2}) scaled,
-            ``W >= pushforward + k + 2`` (later frames are not used).
+        frames: ``[W, n_nodes, 3]`` (s_{t-H}, ..., s_t, ..., s_{t+W-H-1}) scaled, ``H`` the
+            step's ``history`` (1: the window starts at s_{t-1}),
+            ``W >= pushforward + k + H + 1`` (later frames are not used).
         node_type: ``[n_nodes]`` NodeType. mask: ``[n_nodes]`` real nodes.
         k: steps unrolled with gradients (static, >= 1).
         pushforward: steps applied first without gradients (static, >= 0).
@@ -111,36 +112,46 @@ def flat_window_loss_terms(
 
 
 def _predict(step, params, stats, frames, node_type, mask, *, k, pushforward, train, rng):
-    """The window's first ``k + 2`` frames after the push-forward steps, and the ``k``
-    predicted positions and outputs (``[k, ...]``); frames lead with the window axis ``W``."""
+    """The window's first ``H + k + 1`` frames after the push-forward steps (``H`` the step's
+    history: 1 for one velocity), and the ``k`` predicted positions and outputs (``[k, ...]``);
+    frames lead with the window axis ``W``."""
     step.require_dense("the training loss")
-    need = pushforward + k + 2
+    h = step.history
+    need = pushforward + k + h + 1
     if k < 1 or pushforward < 0 or frames.shape[0] < need:
-        raise ValueError(f"k = {k} loss steps after {pushforward} push-forward steps need a "
-                         f"window of >= {need} frames, got {frames.shape[0]}")
+        raise ValueError(f"k = {k} loss steps after {pushforward} push-forward steps with "
+                         f"{h} previous frame(s) need a window of >= {need} frames, got "
+                         f"{frames.shape[0]}")
     if pushforward:
-        pushed, _ = unroll(step, params, stats, frames[0], frames[1], node_type, mask,
+        pushed, _ = unroll(step, params, stats, _prev(frames, h), frames[h], node_type, mask,
                            pushforward, train=train,
                            rng=None if rng is None else jax.random.fold_in(rng, 10_007))
         pushed = jax.lax.stop_gradient(pushed)
-        start = jnp.concatenate([frames[:2], pushed])[-2:]
-        frames = jnp.concatenate([start, frames[pushforward + 2:need]])
-    frames = frames[:k + 2]
+        start = jnp.concatenate([frames[:h + 1], pushed])[-(h + 1):]
+        frames = jnp.concatenate([start, frames[pushforward + h + 1:need]])
+    frames = frames[:k + h + 1]
     if k == 1:
-        out = step(params, stats, frames[0], frames[1], node_type, mask, train=train, rng=rng)
+        out = step(params, stats, _prev(frames, h), frames[h], node_type, mask, train=train,
+                   rng=rng)
         return frames, out.positions[None], out.output[None]
-    positions, outputs = unroll(step, params, stats, frames[0], frames[1], node_type, mask, k,
-                                train=train, rng=rng)
+    positions, outputs = unroll(step, params, stats, _prev(frames, h), frames[h], node_type,
+                                mask, k, train=train, rng=rng)
     return frames, positions, outputs
 
 
+def _prev(frames, h):
+    """``x_prev`` of a window whose current frame is ``frames[h]``."""
+    return frames[0] if h == 1 else frames[:h]
+
+
 def _terms(step, stats, frames, node_type, mask, positions, outputs):
-    """The loss terms of one window from its ``k + 2`` frames and ``k`` predictions."""
-    k = positions.shape[0]
-    states = jnp.concatenate([frames[:2], positions[:-1]])  # s_{t-1+j}, j = 0 .. k
-    truth = frames[2:2 + k]
-    target = step.normalized_target(stats, target_acceleration(states[:-1], states[1:], truth),
-                                    frames[1], node_type, mask)
+    """The loss terms of one window from its ``H + k + 1`` frames and ``k`` predictions."""
+    k, h = positions.shape[0], step.history
+    states = jnp.concatenate([frames[:h + 1], positions[:-1]])  # s_{t-h}, ..., s^_{t+k-1}
+    truth = frames[h + 1:h + 1 + k]
+    target = step.normalized_target(
+        stats, target_acceleration(states[h - 1:h - 1 + k], states[h:h + k], truth),
+        frames[h], node_type, mask)
     clot = clot_mask(node_type, mask)[None, :, None]
     loss_sq = jnp.where(clot, (outputs - target) ** 2, 0.0).mean(axis=(0, 2))
     mse_sq = jnp.where(clot, (positions - truth) ** 2, 0.0).mean(axis=(0, 2))

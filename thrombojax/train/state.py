@@ -91,7 +91,8 @@ class TrainedModel:
     def step(self) -> LearnedStep:
         """The learned step this model was trained as (its surrogate in the run's frame)."""
         return make_step(self.model, self.run.train.frame,
-                         float(self.config.get("wall_cutoff", 0.0)))
+                         float(self.config.get("wall_cutoff", 0.0)),
+                         history=self.run.train.history)
 
 
 def _manager(directory: pathlib.Path, *, read_only: bool = False) -> ocp.CheckpointManager:

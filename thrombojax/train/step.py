@@ -101,6 +101,7 @@ def batch_loss(
     train: bool,
     noise_std: float = 0.0,
     noise_gamma: float = 0.1,
+    noise_walk: bool = False,
     k: int = 1,
     pushforward: int = 0,
     flat_batch: bool = False,
@@ -109,10 +110,12 @@ def batch_loss(
 
     Args:
         model: the surrogate (or its learned step). params, stats: its variables and statistics.
-        batch: :class:`thrombojax.data.batching.Batch` (``frames [B, W, N, 3]``, ``W >= k + 2``).
+        batch: :class:`thrombojax.data.batching.Batch` (``frames [B, W, N, 3]``,
+            ``W >= pushforward + k + H + 1``, ``H`` the step's history).
         rng: PRNG key for noise and dropout (``None`` in evaluation).
         train: training mode (noise, dropout).
-        noise_std, noise_gamma: training noise (:mod:`thrombojax.train.noise`).
+        noise_std, noise_gamma, noise_walk: training noise (:mod:`thrombojax.train.noise`;
+            ``noise_walk``: the random walk over a history of frames).
         k: steps of the unrolled loss (1: the single-step loss).
         pushforward: steps applied first without gradients (push-forward training).
         flat_batch: run the model once on the batch as one flat graph
@@ -133,7 +136,8 @@ def batch_loss(
             noise_key, model_key = jax.random.split(key)
             if train and noise_std > 0:
                 frames = add_training_noise(
-                    noise_key, frames, node_type, mask, std=noise_std, gamma=noise_gamma
+                    noise_key, frames, node_type, mask, std=noise_std, gamma=noise_gamma,
+                    current=step.history, walk=noise_walk,
                 )
         return window_loss_terms(
             step, params, stats, frames, node_type, mask, k=k, pushforward=pushforward,
@@ -184,6 +188,7 @@ def make_train_step(
     *,
     noise_std: float = 0.0,
     noise_gamma: float = 0.1,
+    noise_walk: bool = False,
     k: int = 1,
     pushforward: int = 0,
     donate: bool = True,
@@ -195,7 +200,7 @@ def make_train_step(
         model: the surrogate (static).
         tx: the optimiser.
         stats: target statistics (closed over, constants of the compiled step).
-        noise_std, noise_gamma: training noise (0: off).
+        noise_std, noise_gamma, noise_walk: training noise (0: off).
         k: steps of the unrolled loss (1: single step).
         pushforward: steps applied first without gradients (push-forward training).
         donate: donate the old state's buffers to the new one.
@@ -210,7 +215,8 @@ def make_train_step(
         def loss_fn(params):
             return batch_loss(
                 learned, params, stats, batch, rng, train=True,
-                noise_std=noise_std, noise_gamma=noise_gamma, k=k, pushforward=pushforward,
+                noise_std=noise_std, noise_gamma=noise_gamma, noise_walk=noise_walk, k=k,
+                pushforward=pushforward,
                 flat_batch=flat_batch,
             )
 
@@ -253,6 +259,8 @@ def init_state(
     Returns:
         A :class:`TrainState` at step 0.
     """
-    frames = batch.frames[0]
-    params = _as_step(model).init(rng, frames[0], frames[1], batch.node_type[0], batch.mask[0])
+    frames, step = batch.frames[0], _as_step(model)
+    h = step.history  # the window's current frame is frames[h]
+    params = step.init(rng, frames[0] if h == 1 else frames[:h], frames[h], batch.node_type[0],
+                       batch.mask[0])
     return TrainState(step=jnp.zeros((), jnp.int32), params=params, opt_state=tx.init(params))
