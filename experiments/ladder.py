@@ -19,7 +19,9 @@ before t, ``thrombojax.simulator.step``), the same with a 3x smaller learning ra
 history with the single-step loss (noise and rotations, no push-forward or k-step), the same
 reading three frames, an ensemble of three of it, and it with
 the noise as a random walk over all input frames (``noise_walk``), and an ensemble of three
-of that. Every rung
+of that; the same with one push-forward step (no k-step gradients); and the rotation rung's
+k-step recipe with the history, its random-walk noise and no gradient through the history
+features (``stop_history_gradient``). Every rung
 trains the same small MeshGraphNet for the same wall-clock budget (the
 epoch count is calibrated on this machine by timing one epoch), then is measured on held-out
 simulations (the split is by name: the last rotation is outside the training range):
@@ -127,6 +129,9 @@ RUNGS: tuple[Rung, ...] = (
     Rung("history_walk", {**HISTORY, "noise_walk": True}, guards=True),
     Rung("walk_ensemble", {**HISTORY, "noise_walk": True}, guards=True, reuse="history_walk",
          members=3),
+    Rung("history_pf", {**HISTORY, "noise_walk": True, "pushforward_steps": 1}, guards=True),
+    Rung("history_sg", {**ROTATION, "history": 2, "noise_walk": True,
+                        "stop_history_gradient": True}, guards=True),
 )
 
 

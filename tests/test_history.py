@@ -281,3 +281,28 @@ def test_random_walk_noise_over_the_history():
                                                             current=1, walk=True))
     with pytest.raises(ConfigError, match="noise_walk"):
         TrainConfig(noise_walk=1)
+
+
+def test_stop_history_gradient_cuts_only_the_history_path():
+    """With the flag the oldest frame (which reaches the model only through the acceleration
+    feature) gets no gradient; the outputs and the other inputs' gradients are unchanged in
+    kind; the option travels through the config."""
+    traj, nt, mask, stats = _trajectory()
+    plain = make_step(_model(), history=2)
+    cut = make_step(_model(), history=2, stop_history_gradient=True)
+    params = plain.init(jax.random.key(0), traj[0:2], traj[2], nt, mask)
+
+    def grads(step):
+        def f(prev, cur):
+            return jnp.sum(step(params, stats, prev, cur, nt, mask).output ** 2)
+        return jax.grad(f, argnums=(0, 1))(jnp.asarray(traj[0:2]), jnp.asarray(traj[2]))
+
+    (gp_plain, _), (gp_cut, gc_cut) = grads(plain), grads(cut)
+    assert np.abs(np.asarray(gp_plain[0])).max() > 0
+    np.testing.assert_array_equal(np.asarray(gp_cut[0]), 0.0)
+    assert np.abs(np.asarray(gc_cut)).max() > 0  # positions and velocity still differentiate
+    np.testing.assert_allclose(cut(params, stats, traj[0:2], traj[2], nt, mask).output,
+                               plain(params, stats, traj[0:2], traj[2], nt, mask).output)
+    assert TrainConfig(history=2, stop_history_gradient=True).stop_history_gradient
+    with pytest.raises(ConfigError, match="stop_history_gradient"):
+        TrainConfig(stop_history_gradient="yes")

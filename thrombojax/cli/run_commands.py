@@ -81,6 +81,9 @@ def _add_train(sub) -> None:
     p.add_argument("--history", type=POS_INT, help="frames before t the learned step reads: "
                    "1 (default) the velocity alone; H >= 2 also the H - 1 accelerations before "
                    "t (they show the drive and damping that the velocity does not)")
+    p.add_argument("--stop-history-gradient", action="store_true", default=None,
+                   help="with --history H > 1 and --rollout-steps K > 1: no gradient through "
+                   "the history features in the unrolled loss")
     p.add_argument("--wall-features", type=NN_FLOAT, help="give clot nodes the distance and "
                    "direction to the nearest vessel node, cut off at this many vessel radii "
                    "(default 0: off)")
@@ -100,7 +103,8 @@ def _run_train(args) -> int:
     names = ("epochs", "batch_size", "lr", "warmup_epochs", "max_rotation",
              "nodes_per_sample", "bary_ratio", "noise_std", "seed", "skip_frames", "n_val",
              "n_test", "tiny", "rollout_steps", "noise_gamma", "pushforward_steps",
-             "curriculum_epochs", "frame", "wall_features", "history", "noise_walk")
+             "curriculum_epochs", "frame", "wall_features", "history", "noise_walk",
+             "stop_history_gradient")
     overrides = {k: getattr(args, k) for k in names if getattr(args, k) is not None}
     from thrombojax.train.recipes import DEFAULT_RECIPE, recipe
 

@@ -167,6 +167,9 @@ class LearnedStep:
         grid: cell grid of the model's radius graph, in the step's frame (None: dense search).
         history: frames before t the step reads (1: s_{t-1}, the velocity alone; H >= 2: also
             the H - 1 accelerations before t, see the module docstring).
+        stop_history_gradient: the history features are constants to differentiation (an
+            unrolled loss then takes gradients through positions and velocities only, as for
+            one velocity); outputs are unchanged.
     """
 
     model: Surrogate
@@ -174,6 +177,7 @@ class LearnedStep:
     wall_cutoff: float = 0.0
     grid: GridSpec | None = None
     history: int = 1
+    stop_history_gradient: bool = False
 
     def __post_init__(self) -> None:
         if self.frame not in FRAMES:
@@ -262,8 +266,9 @@ class LearnedStep:
         inputs = make_input(self.last_previous(x_prev), x_cur, node_type, mask, velocity_scale)
         extra = []
         if self.history > 1:
-            extra.append(past_accelerations(x_prev, x_cur, mask, 1.0 if stats is None else
-                                            jnp.sqrt(jnp.mean(stats.std ** 2))))
+            feats = past_accelerations(x_prev, x_cur, mask, 1.0 if stats is None else
+                                       jnp.sqrt(jnp.mean(stats.std ** 2)))
+            extra.append(jax.lax.stop_gradient(feats) if self.stop_history_gradient else feats)
         if self.wall_cutoff > 0:
             extra.append(wall_node_features(x_cur, node_type, mask, cutoff=self.wall_cutoff))
         if extra:
@@ -329,12 +334,13 @@ def _init(step: LearnedStep, rng, x_prev, x_cur, node_type, mask) -> dict:
 
 
 def make_step(model: Surrogate, frame: str = "global", wall_cutoff: float = 0.0,
-              grid: GridSpec | None = None, history: int = 1) -> LearnedStep:
+              grid: GridSpec | None = None, history: int = 1,
+              stop_history_gradient: bool = False) -> LearnedStep:
     """The learned simulator of a surrogate in ``frame``, with wall features when
     ``wall_cutoff > 0``, the cell ``grid`` where it pays and ``history`` previous frames (see
-    the module docstring)."""
+    the module docstring and :class:`LearnedStep`)."""
     return LearnedStep(model=model, frame=frame, wall_cutoff=float(wall_cutoff), grid=grid,
-                       history=history)
+                       history=history, stop_history_gradient=bool(stop_history_gradient))
 
 
 def past_accelerations(x_prev: jax.Array, x_cur: jax.Array, mask: jax.Array,

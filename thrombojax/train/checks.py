@@ -74,7 +74,8 @@ def check_train_values(cfg: Any) -> None:
 
     Also: the memory ``bary_ratio`` asks for even on one window
     (:func:`thrombojax.train.memory.check_train_memory`; the training loop checks again with the
-    dataset's sizes), ``tiny`` and ``noise_walk`` booleans, ``model_config`` an object.
+    dataset's sizes), ``tiny``, ``noise_walk`` and ``stop_history_gradient`` booleans,
+    ``model_config`` an object.
     """
     for name in _RULES:
         if hasattr(cfg, name):
@@ -83,7 +84,7 @@ def check_train_values(cfg: Any) -> None:
         n_windows=1, n_val_windows=0, bary_ratio=cfg.bary_ratio, batch_size=cfg.batch_size or 1,
         budget=1, length=3, max_neighbors=cfg.bary_max_neighbors,
     ), values={"bary_ratio": float(cfg.bary_ratio), "bary_max_neighbors": cfg.bary_max_neighbors})
-    for flag in ("tiny", "noise_walk"):
+    for flag in ("tiny", "noise_walk", "stop_history_gradient"):
         if not isinstance(getattr(cfg, flag, False), bool):
             raise ConfigError(f"{_option(flag)} ({flag}) must be true or false, got "
                               f"{getattr(cfg, flag)!r}")

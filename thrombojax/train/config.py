@@ -77,6 +77,8 @@ class TrainConfig:
         history: frames before t the learned step reads (1: the velocity alone; H >= 2: also
             the H - 1 accelerations before t, :mod:`thrombojax.simulator.step`); windows grow
             by H - 1 frames.
+        stop_history_gradient: with ``history > 1`` and an unrolled loss, no gradient through
+            the history features (:class:`thrombojax.simulator.step.LearnedStep`).
         tiny: start from the model's tiny config (tests, smoke runs).
         model_config: overrides of the model config fields (architecture, graph radius).
         checkpoint_every: also save the last checkpoint every this many steps (0: each epoch).
@@ -110,6 +112,7 @@ class TrainConfig:
     frame: str = "global"
     wall_features: float = 0.0
     history: int = 1
+    stop_history_gradient: bool = False
     tiny: bool = False
     model_config: dict = dataclasses.field(default_factory=dict)
     checkpoint_every: int = 0

@@ -217,7 +217,8 @@ def train(
     radius = (vessel_radius(ds) / float(scaling.scale)
               if cfg.noise_std > 0 or cfg.wall_features > 0 else 0.0)
     wall_cutoff = cfg.wall_features * radius
-    step_fn = make_step(model, cfg.frame, wall_cutoff, history=cfg.history)
+    step_fn = make_step(model, cfg.frame, wall_cutoff, history=cfg.history,
+                        stop_history_gradient=cfg.stop_history_gradient)
     state = init_state(step_fn, tx, init_key, batch_of(plan_of(epoch=0)[0]))
     run_config = {
         **RunConfig(model=model_name, dataset=str(pathlib.Path(dataset_path).resolve()),

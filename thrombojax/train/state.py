@@ -92,7 +92,8 @@ class TrainedModel:
         """The learned step this model was trained as (its surrogate in the run's frame)."""
         return make_step(self.model, self.run.train.frame,
                          float(self.config.get("wall_cutoff", 0.0)),
-                         history=self.run.train.history)
+                         history=self.run.train.history,
+                         stop_history_gradient=self.run.train.stop_history_gradient)
 
 
 def _manager(directory: pathlib.Path, *, read_only: bool = False) -> ocp.CheckpointManager:
