@@ -34,7 +34,8 @@ simulations (the split is by name: the last rotation is outside the training ran
 
 Resumable: a rung whose ``result.json`` exists is skipped; a rung whose training was killed
 resumes from its last checkpoint. Writes ``table.md``, ``ladder.json`` and
-``error_per_step.png`` with the command, device, versions, date and machine load.
+``error_per_step.png`` with the command, device, versions, date and machine load
+(``experiments/ladder_report.py``).
 """
 
 from __future__ import annotations
@@ -47,42 +48,40 @@ import shutil
 import sys
 import time
 
-import matplotlib
+import numpy as np
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-from thrombojax import study  # noqa: E402
-from thrombojax.data.augment import subsample_indices  # noqa: E402
-from thrombojax.data.radius import vessel_radius  # noqa: E402
-from thrombojax.eval.metrics import (  # noqa: E402
+from thrombojax import study
+from thrombojax.data.augment import subsample_indices
+from thrombojax.data.radius import vessel_radius
+from thrombojax.eval.metrics import (
     centroid_error,
     fit_vessel_wall,
     fraction_outside,
     mse_per_step,
 )
-from thrombojax.eval.single_step import (  # noqa: E402
+from thrombojax.eval.single_step import (
     ensemble_single_step_errors,
     scaled_simulation,
     single_step_errors,
 )
-from thrombojax.eval.tables import environment, markdown_table  # noqa: E402
-from thrombojax.eval.uncertainty import uncertainty_summary  # noqa: E402
-from thrombojax.io.hdf5 import open_dataset  # noqa: E402
-from thrombojax.io.outputs import atomic_path, atomic_write_text  # noqa: E402
-from thrombojax.models.registry import create_model, identity_stats  # noqa: E402
-from thrombojax.simulator.ensemble import ensemble_rollout, stack_params  # noqa: E402
-from thrombojax.simulator.guard_set import build_guards  # noqa: E402
-from thrombojax.simulator.rollout import (  # noqa: E402
+from thrombojax.eval.uncertainty import uncertainty_summary
+from thrombojax.io.hdf5 import open_dataset
+from thrombojax.io.outputs import atomic_write_text
+from thrombojax.models.registry import create_model, identity_stats
+from thrombojax.simulator.ensemble import ensemble_rollout, stack_params
+from thrombojax.simulator.guard_set import build_guards
+from thrombojax.simulator.rollout import (
     constant_velocity_rollout,
     guarded_unroll,
     rollout_with_corrections,
 )
-from thrombojax.simulator.step import make_step  # noqa: E402
-from thrombojax.train.loop import train  # noqa: E402
-from thrombojax.train.state import latest_step, load_trained  # noqa: E402
-from thrombojax.types import clot_mask  # noqa: E402
+from thrombojax.simulator.step import make_step
+from thrombojax.train.loop import train
+from thrombojax.train.state import latest_step, load_trained
+from thrombojax.types import clot_mask
+
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))  # the sibling report module
+from ladder_report import write_reports  # noqa: E402
 
 SMALL_MGN = {"hidden": 32, "processor_size": 5, "max_neighbors": 12}
 COMMON = {"batch_size": 4, "max_rotation": 0.0, "warmup_epochs": 2.0,
@@ -256,25 +255,6 @@ def _evaluate(runs: list[pathlib.Path], data: str, guards: bool,
             "epochs": json.loads((runs[0] / "config.json").read_text())["train"]["epochs"]}
 
 
-def _table(results: dict) -> str:
-    rows = []
-    for name, res in results.items():
-        m = res["mean"]
-        rows.append([name, f"{m['mse1_all'] / m['mse1_all_cv']:.2f}",
-                     f"{m['mse1_phase'] / m['mse1_phase_cv']:.2f}", m["mse10"], m["mse_full"],
-                     f"{m['mse_full'] / m['mse_full_cv']:.2f}", f"{m['final_centroid_r']:.2f}",
-                     f"{100 * m['max_outside']:.0f} %", f"{m['max_correction_r']:.2f}",
-                     res["epochs"]])
-    cv = next(iter(results.values()))["mean"]
-    rows.append(["constant velocity", "1", "1", cv["mse10_cv"], cv["mse_full_cv"], "1",
-                 f"{cv['final_centroid_cv_r']:.2f}", f"{100 * cv['max_outside_cv']:.0f} %",
-                 "-", "-"])
-    return markdown_table(["rung", "1-step MSE / CV (all)", "1-step MSE / CV (rollout phase)",
-                           "MSE@10 (r^2)", "MSE@full (r^2)", "MSE@full / CV",
-                           "final centroid error (r)", "max clot outside",
-                           "largest guard correction (r)", "epochs"], rows)
-
-
 def _members_alone(runs: list[pathlib.Path], data: str, guards: bool,
                    n_nodes: int | None) -> list[dict]:
     """Each member of an ensemble evaluated alone: how much one recipe varies with its seed."""
@@ -287,66 +267,6 @@ def _members_alone(runs: list[pathlib.Path], data: str, guards: bool,
                     "mse1_phase_ratio": mean["mse1_phase"] / mean["mse1_phase_cv"],
                     "max_outside": mean["max_outside"]})
     return out
-
-
-def _seed_lines(results: dict) -> str:
-    """One line per ensemble rung: its members' rollouts alone (seed to seed spread)."""
-    lines = []
-    for name, res in results.items():
-        alone = res.get("members_alone")
-        if not alone:
-            continue
-
-        def join(key, fmt=".2f", alone=alone):
-            return " / ".join(f"{m[key]:{fmt}}" for m in alone)
-
-        seeds = ", ".join(str(m["seed"]) for m in alone)
-        lines.append(f"- {name}, each member alone (seeds {seeds}): MSE@full / CV "
-                     f"{join('mse_full_ratio')}; final centroid error {join('final_centroid_r')} "
-                     f"r; 1-step MSE / CV (rollout phase) {join('mse1_phase_ratio')}\n")
-    return "".join(lines)
-
-
-def _uncertainty_lines(results: dict) -> str:
-    """One line per ensemble rung: how well its spread predicts the error of its mean."""
-    lines = []
-    for name, res in results.items():
-        sims = [s["uncertainty"] for s in res["simulations"].values() if "uncertainty" in s]
-        if not sims:
-            continue
-
-        def avg(key, sims=sims):
-            vals = [s[key] for s in sims if s[key] is not None]
-            return float(np.mean(vals)) if vals else float("nan")
-
-        lines.append(
-            f"- {name} ({res['members']} members): spread vs error of the mean per clot node and "
-            f"step, Spearman {avg('spearman'):.2f}, Pearson {avg('pearson'):.2f}, over time "
-            f"(mean spread vs mean error per step) {avg('temporal_pearson'):.2f}; mean error / "
-            f"mean spread {avg('calibration'):.2f} (1: calibrated, > 1: over-confident); "
-            f"{100 * avg('within_2_spread'):.0f} % of nodes within 2 spreads; mean spread "
-            f"{avg('mean_spread'):.3f} r against a mean error of {avg('mean_error'):.3f} r "
-            "(means over the held-out simulations)\n")
-    return "".join(lines)
-
-
-def _plot(results: dict, path: pathlib.Path, title: str) -> None:
-    fig, ax = plt.subplots(figsize=(7, 4))
-    for name, res in results.items():
-        curve = np.mean([s["mse_per_step"] for s in res["simulations"].values()], axis=0)
-        ax.plot(np.arange(1, len(curve) + 1), curve, label=name)
-    cv = np.mean([s["mse_per_step_cv"] for s in next(iter(results.values()))["simulations"]
-                  .values()], axis=0)
-    ax.plot(np.arange(1, len(cv) + 1), cv, "k--", label="constant velocity")
-    ax.set_yscale("log")
-    ax.set_xlabel("rollout step")
-    ax.set_ylabel("MSE of clot nodes (vessel radii$^2$)")
-    ax.set_title(f"Stability ladder: held-out {title} simulations")
-    ax.legend(fontsize=8)
-    fig.tight_layout()
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, dpi=120, format="png")
-    plt.close(fig)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -380,44 +300,29 @@ def main(argv: list[str] | None = None) -> int:
         done = folder / "result.json"
         if done.is_file():
             res = json.loads(done.read_text())
-            if rung.members > 1 and "members_alone" not in res:  # results made before it
-                runs = _member_runs(rung, out, args.dataset, split, args.nodes)
-                res["members_alone"] = _members_alone(runs, args.dataset, rung.guards,
-                                                      args.nodes)
-                atomic_write_text(done, json.dumps(res, indent=1))
+        else:
+            folder.mkdir(exist_ok=True)
+            t = time.perf_counter()
+            if not rung.reuse:
+                _train_rung(rung, args.dataset, folder, split, args.minutes, args.max_epochs,
+                            args.epochs, args.nodes)
+            runs = _member_runs(rung, out, args.dataset, split, args.nodes)
+            res = _evaluate(runs, args.dataset, rung.guards, args.nodes)
+            res.update(rung=dataclasses.asdict(rung) | {"train": {k: str(v) for k, v in
+                                                                   rung.train.items()}},
+                       seconds=time.perf_counter() - t)
+            print(f"  {rung.name}: MSE@full / CV = "
+                  f"{res['mean']['mse_full'] / res['mean']['mse_full_cv']:.2f}", flush=True)
+        if rung.members > 1 and "members_alone" not in res:  # also for results made before it
+            runs = _member_runs(rung, out, args.dataset, split, args.nodes)
+            res["members_alone"] = _members_alone(runs, args.dataset, rung.guards, args.nodes)
+        elif done.is_file():
             results[rung.name] = res
             continue
-        folder.mkdir(exist_ok=True)
-        t = time.perf_counter()
-        if not rung.reuse:
-            _train_rung(rung, args.dataset, folder, split, args.minutes, args.max_epochs,
-                        args.epochs, args.nodes)
-        runs = _member_runs(rung, out, args.dataset, split, args.nodes)
-        res = _evaluate(runs, args.dataset, rung.guards, args.nodes)
-        if rung.members > 1:
-            res["members_alone"] = _members_alone(runs, args.dataset, rung.guards, args.nodes)
-        res.update(rung=dataclasses.asdict(rung) | {"train": {k: str(v) for k, v in
-                                                               rung.train.items()}},
-                   seconds=time.perf_counter() - t)
         atomic_write_text(done, json.dumps(res, indent=1))
         results[rung.name] = res
-        print(f"  {rung.name}: MSE@full / CV = "
-              f"{res['mean']['mse_full'] / res['mean']['mse_full_cv']:.2f}", flush=True)
-    table = _table(results)
-    env = environment()
-    atomic_write_text(out / "table.md",
-        f"# Stability ladder ({args.title}, held-out simulations "
-        f"{', '.join(split['test_sims'])})\n\n{table}\n"
-        "Errors in vessel radii (r); ratios to constant velocity (CV). Training per rung: the "
-        "`epochs` column (a rung trained with `--minutes M` gets the epochs one timed epoch "
-        "says fit M minutes on the machine; with `--epochs N`, exactly N)"
-        + (f"; {args.nodes} nodes per simulation" if args.nodes else "") + ".\n\n"
-        + (f"Uncertainty:\n{unc}\n" if (unc := _uncertainty_lines(results)) else "")
-        + (f"Seeds:\n{seeds}\n" if (seeds := _seed_lines(results)) else "")
-        + "".join(f"- {k}: {v}\n" for k, v in env.items()))
-    atomic_write_text(out / "ladder.json", json.dumps({"environment": env, "results": results},
-                                                      indent=1))
-    _plot(results, out / "error_per_step.png", args.title)
+    table = write_reports(out, results, title=args.title, test_sims=split["test_sims"],
+                          nodes=args.nodes)
     print(table)
     return 0
 

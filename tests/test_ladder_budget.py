@@ -80,7 +80,7 @@ def test_the_default_recipe_is_the_ladders_rotation_rung(monkeypatch):
 
 def test_members_alone_reports_every_seed(tmp_path, monkeypatch):
     """An ensemble rung also scores each member alone (seed-to-seed spread of the recipe), and
-    the table gets one `Seeds:` line with those numbers."""
+    the table gets one `Seeds:` line with those numbers (experiments/ladder_report.py)."""
     import json
 
     ladder = _ladder(monkeypatch)
@@ -102,6 +102,7 @@ def test_members_alone_reports_every_seed(tmp_path, monkeypatch):
     alone = ladder._members_alone([r for r, _ in runs], "d.h5", True, None)
     assert [m["seed"] for m in alone] == [0, 1]
     assert [m["mse_full_ratio"] for m in alone] == [0.5, 3.0]
-    line = ladder._seed_lines({"ens": {"members_alone": alone}, "single": {}})
+    report = sys.modules["ladder_report"]  # imported by the ladder script
+    line = report.seed_lines({"ens": {"members_alone": alone}, "single": {}})
     assert "ens" in line and "0.50 / 3.00" in line and "5.00 / 30.00 r" in line
     assert "single" not in line and line.count("\n") == 1

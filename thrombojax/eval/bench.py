@@ -52,7 +52,7 @@ from thrombojax.sim.generate import simulate
 from thrombojax.sim.presets import get_preset
 from thrombojax.simulator.grid_step import allocate_grid, run_checked
 from thrombojax.simulator.rollout import as_step, rollout_jit
-from thrombojax.simulator.step import make_step
+from thrombojax.simulator.step import LearnedStep, make_step
 from thrombojax.train.guards import warn_large_cpu_cases
 from thrombojax.train.state import load_trained
 from thrombojax.types import NodeType, TargetStats
@@ -135,8 +135,8 @@ def synthetic_cloud(n_nodes: int, *, clot_fraction: float = 0.3, seed: int = 0):
     return x_prev.astype(np.float32), x_cur.astype(np.float32), node_type
 
 
-def time_rollout(model: Surrogate, params: dict, stats: TargetStats, x_prev, x_cur, node_type,
-                 n_steps: int, *, repeats: int = 3, grid: bool = True) -> dict:
+def time_rollout(model: Surrogate | LearnedStep, params: dict, stats: TargetStats, x_prev, x_cur,
+                 node_type, n_steps: int, *, repeats: int = 3, grid: bool = True) -> dict:
     """Compile and time one rollout shape (the compiled rollout of the learned step).
 
     With ``grid`` the step's radius graphs use the cell grid where it pays (module docstring);
@@ -198,21 +198,19 @@ def _solver_times(datasets: list, measure_presets: list[str]) -> dict[str, float
     return out
 
 
-def _inputs(case: BenchCase, dataset, seed: int, history: int = 1):
-    """``((x_prev, x_cur, node_type), source)``; ``x_prev [history, n, 3]`` when the step reads
-    more than one previous frame (the synthetic tube extends its velocity backwards)."""
+def _inputs(case: BenchCase, dataset, seed: int, step: LearnedStep):
+    """``((x_prev, x_cur, node_type), source)``, ``x_prev`` in the shape ``step`` reads
+    (:meth:`LearnedStep.previous`; the synthetic tube extends its velocity backwards)."""
     if dataset is None:
         x_prev, x_cur, node_type = synthetic_cloud(case.n_nodes, seed=seed)
-        if history > 1:
-            v = x_cur - x_prev
-            x_prev = np.stack([x_cur - (history - j) * v for j in range(history)])
-        return (x_prev, x_cur, node_type), "synthetic bent tube"
+        v = x_cur - x_prev
+        frames = np.stack([x_cur - (step.history - j) * v for j in range(step.history + 1)])
+        return (step.previous(frames, step.history), x_cur, node_type), "synthetic bent tube"
     name = dataset.names[0]
     pos, node_type = scaled_simulation(dataset, name, fit_scaling(dataset))
     t0 = min(max(study.skip_frames(dataset), 1), pos.shape[0] - 1)
     idx = subsample_indices(seed, node_type, case.n_nodes)
-    lags = np.maximum(t0 + np.arange(-history, 0), 0)  # frame 0 repeated before the record
-    x_prev = pos[lags][:, idx] if history > 1 else pos[t0 - 1, idx]
+    x_prev = step.previous(pos, t0)[..., idx, :]
     return (x_prev, pos[t0, idx], node_type[idx]), f"{dataset.path}:{name}"
 
 
@@ -271,21 +269,20 @@ def bench(
         case = STUDY_CASES[case_name]
         if n_nodes is not None:
             case = dataclasses.replace(case, n_nodes=int(n_nodes))
-        trained = load_trained(runs[model_name]) if model_name in runs else None
-        history = 1 if trained is None else trained.step.history
-        (x_prev, x_cur, node_type), source = _inputs(case, ds, seed, history)
-        if trained is not None:
+        if model_name in runs:
+            trained = load_trained(runs[model_name])
             model, params, stats, weights = trained.step, trained.params, trained.stats, "trained"
             config = run_config_label(runs[model_name], trained.config)
         else:
-            model = create_model(model_name, get_config(model_name, tiny=tiny))
-            stats = identity_stats()
+            model = make_step(create_model(model_name, get_config(model_name, tiny=tiny)))
+            stats, weights = identity_stats(), "random init"
+            config = "tiny config" if tiny else "study config"
+        (x_prev, x_cur, node_type), source = _inputs(case, ds, seed, model)
+        if model_name not in runs:
             if model_name not in inits:  # parameters do not depend on the node count
-                inits[model_name] = make_step(model).init(
+                inits[model_name] = model.init(
                     jax.random.key(seed), x_prev, x_cur, node_type, np.ones(len(node_type), bool))
             params = inits[model_name]
-            weights = "random init"
-            config = "tiny config" if tiny else "study config"
         steps = case.n_steps if max_steps is None else min(case.n_steps, int(max_steps))
         t = time_rollout(model, params, stats, x_prev, x_cur, node_type, steps, repeats=repeats)
         per_step = t["per_step_s"]

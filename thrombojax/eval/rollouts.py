@@ -125,7 +125,8 @@ def rollout_simulation(
     idx = subsample_indices(seed, node_type, n_nodes or positions.shape[1])
     sub_type = np.asarray(node_type)[idx]
     x_last, x0 = positions[t0 - 1, idx], positions[t0, idx]
-    x_prev = as_step(model).previous(positions, t0)[..., idx, :]  # the step's history
+    step = as_step(model)
+    x_prev = step.previous(positions, t0)[..., idx, :]  # the step's history
     mask = np.ones(idx.size, bool)
     guards = None if guard_radius is None else build_guards(
         positions[0], node_type, x0, sub_type, radius=guard_radius, wall_cells=wall_cells)
@@ -138,7 +139,6 @@ def rollout_simulation(
         corrections = {} if ens.aux is None else {
             k: np.asarray(v).max(axis=0) for k, v in ens.aux.items()}
     else:
-        step = as_step(model)
         if step.grid is None:  # the grid where it pays, sized from the frames rolled out
             step = allocate_grid(step, positions[t0 - 1:t0 + 1 + n_steps][:, idx], sub_type)
         traj, corrections = rollout_with_corrections(step, params, stats, x_prev, x0, sub_type,

@@ -88,11 +88,15 @@ class FlatStep:
     @property
     def history(self) -> int:
         """Previous frames the step reads (always 1: see ``__post_init__``)."""
-        return 1
+        return self.step.history
+
+    def previous(self, positions, t):
+        """As :meth:`LearnedStep.previous` (``positions`` lead with the frame axis)."""
+        return self.step.previous(positions, t)
 
     def shift(self, x_prev: jax.Array, x_cur: jax.Array) -> jax.Array:
-        """As :meth:`LearnedStep.shift` (one previous frame: ``x_cur``)."""
-        return x_cur
+        """As :meth:`LearnedStep.shift`."""
+        return self.step.shift(x_prev, x_cur)
 
     @property
     def name(self) -> str:

@@ -201,6 +201,8 @@ class LearnedStep:
             raise ConfigError(f"learned step: frame t = {t.min()} has no previous frame (t >= 1)")
         if self.history == 1:
             return positions[t - 1]
+        if t.ndim == 0 and t >= self.history:  # a slice (also of a traced window)
+            return positions[int(t) - self.history:int(t)]
         lags = np.arange(-self.history, 0)
         return positions[np.maximum(t[..., None] + lags, 0)]
 

@@ -123,7 +123,8 @@ def _predict(step, params, stats, frames, node_type, mask, *, k, pushforward, tr
                          f"{h} previous frame(s) need a window of >= {need} frames, got "
                          f"{frames.shape[0]}")
     if pushforward:
-        pushed, _ = unroll(step, params, stats, _prev(frames, h), frames[h], node_type, mask,
+        pushed, _ = unroll(step, params, stats, step.previous(frames, h), frames[h], node_type,
+                           mask,
                            pushforward, train=train,
                            rng=None if rng is None else jax.random.fold_in(rng, 10_007))
         pushed = jax.lax.stop_gradient(pushed)
@@ -131,17 +132,12 @@ def _predict(step, params, stats, frames, node_type, mask, *, k, pushforward, tr
         frames = jnp.concatenate([start, frames[pushforward + h + 1:need]])
     frames = frames[:k + h + 1]
     if k == 1:
-        out = step(params, stats, _prev(frames, h), frames[h], node_type, mask, train=train,
-                   rng=rng)
+        out = step(params, stats, step.previous(frames, h), frames[h], node_type, mask,
+                   train=train, rng=rng)
         return frames, out.positions[None], out.output[None]
-    positions, outputs = unroll(step, params, stats, _prev(frames, h), frames[h], node_type,
-                                mask, k, train=train, rng=rng)
+    positions, outputs = unroll(step, params, stats, step.previous(frames, h), frames[h],
+                                node_type, mask, k, train=train, rng=rng)
     return frames, positions, outputs
-
-
-def _prev(frames, h):
-    """``x_prev`` of a window whose current frame is ``frames[h]``."""
-    return frames[0] if h == 1 else frames[:h]
 
 
 def _terms(step, stats, frames, node_type, mask, positions, outputs):

@@ -261,6 +261,6 @@ def init_state(
     """
     frames, step = batch.frames[0], _as_step(model)
     h = step.history  # the window's current frame is frames[h]
-    params = step.init(rng, frames[0] if h == 1 else frames[:h], frames[h], batch.node_type[0],
+    params = step.init(rng, step.previous(frames, h), frames[h], batch.node_type[0],
                        batch.mask[0])
     return TrainState(step=jnp.zeros((), jnp.int32), params=params, opt_state=tx.init(params))
