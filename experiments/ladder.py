@@ -21,7 +21,10 @@ reading three frames, an ensemble of three of it, and it with
 the noise as a random walk over all input frames (``noise_walk``), and an ensemble of three
 of that; the same with one push-forward step (no k-step gradients); and the rotation rung's
 k-step recipe with the history, its random-walk noise and no gradient through the history
-features (``stop_history_gradient``). Every rung
+features (``stop_history_gradient``); and the random-walk rung with half of the noise's
+variance common to all clot nodes of a window (``noise_shared``), with an ensemble of three of
+it (its seed spread); and the random-walk rung with three times the noise (0.03 r), with an
+ensemble of three. Every rung
 trains the same small MeshGraphNet for the same wall-clock budget (the
 epoch count is calibrated on this machine by timing one epoch), then is measured on held-out
 simulations (the split is by name: the last rotation is outside the training range):
@@ -87,11 +90,12 @@ SMALL_MGN = {"hidden": 32, "processor_size": 5, "max_neighbors": 12}
 COMMON = {"batch_size": 4, "max_rotation": 0.0, "warmup_epochs": 2.0,
           "model_config": SMALL_MGN}
 NOISE = {"noise_std": 0.01}  # vessel radii
-# the rotation rung's recipe (the `rollout` recipe, the default of `thrombojax train`), shared
-# by the ensemble rung's members
+# the rotation rung's recipe (the `rollout` recipe of `thrombojax train`), shared by the
+# ensemble rung's members
 ROTATION = {**NOISE, "pushforward_steps": 1, "rollout_steps": 3, "curriculum_epochs": 6,
             "max_rotation": np.pi}
-# a step that also reads the acceleration before t, trained with the single-step loss
+# a step that also reads the acceleration before t, trained with the single-step loss (with
+# ``noise_walk``: the `history` recipe, the default of `thrombojax train`)
 HISTORY = {**NOISE, "max_rotation": np.pi, "history": 2}
 
 
@@ -131,6 +135,12 @@ RUNGS: tuple[Rung, ...] = (
     Rung("history_pf", {**HISTORY, "noise_walk": True, "pushforward_steps": 1}, guards=True),
     Rung("history_sg", {**ROTATION, "history": 2, "noise_walk": True,
                         "stop_history_gradient": True}, guards=True),
+    Rung("walk_shared", {**HISTORY, "noise_walk": True, "noise_shared": 0.5}, guards=True),
+    Rung("shared_ensemble", {**HISTORY, "noise_walk": True, "noise_shared": 0.5}, guards=True,
+         reuse="walk_shared", members=3),
+    Rung("walk_noise3", {**HISTORY, "noise_walk": True, "noise_std": 0.03}, guards=True),
+    Rung("noise3_ensemble", {**HISTORY, "noise_walk": True, "noise_std": 0.03}, guards=True,
+         reuse="walk_noise3", members=3),
 )
 
 

@@ -78,7 +78,8 @@ def _assert_same(step, params, stats, batch, **options):
     {"train": True, "noise_std": 0.01, "noise_gamma": 0.25},
     {"train": False},
     {"train": True, "noise_std": 0.01, "k": 2, "pushforward": 1},
-], ids=["noise", "eval", "k2-pushforward"])
+    {"train": True, "noise_std": 0.01, "noise_shared": 0.5},
+], ids=["noise", "eval", "k2-pushforward", "shared-noise"])
 def test_flat_equals_vmap_loss_and_gradients(options):
     _assert_same(*_setup(), **options)
 

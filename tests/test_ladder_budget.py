@@ -68,14 +68,16 @@ def test_ensemble_rung_trains_members_like_the_reused_rung(tmp_path, monkeypatch
         assert {k: kw[k] for k in reused.train} == reused.train  # the same recipe
 
 
-def test_the_default_recipe_is_the_ladders_rotation_rung(monkeypatch):
-    """README and docs say `thrombojax train`'s default recipe is the ladder's rotation rung
-    (its best rung that rolls out well for every seed): the dicts must stay equal."""
+def test_the_recipes_are_the_ladders_rungs(monkeypatch):
+    """README and docs say `thrombojax train`'s default recipe is the ladder's history_walk rung
+    (its best rung at equal CPU time, for every seed) and `--recipe rollout` its rotation
+    rung: the dicts must stay equal."""
     from thrombojax.train.recipes import DEFAULT_RECIPE, recipe
 
     ladder = _ladder(monkeypatch)
     rungs = {r.name: r for r in ladder.RUNGS}
-    assert rungs["rotation"].train == recipe(DEFAULT_RECIPE)
+    assert rungs["history_walk"].train == recipe(DEFAULT_RECIPE)
+    assert rungs["rotation"].train == recipe("rollout")
 
 
 def test_members_alone_reports_every_seed(tmp_path, monkeypatch):

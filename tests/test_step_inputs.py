@@ -143,15 +143,17 @@ def test_recipes():
     from thrombojax.train.config import TrainConfig
     from thrombojax.train.recipes import DEFAULT_RECIPE, recipe
 
-    assert DEFAULT_RECIPE == "rollout" and recipe("study") == {}
+    assert DEFAULT_RECIPE == "history" and recipe("study") == {}
     cfg = TrainConfig(**recipe("rollout"))
     assert cfg.rollout_steps > 1 and cfg.pushforward_steps > 0 and cfg.noise_std > 0
+    cfg = TrainConfig(**recipe("history"))
+    assert cfg.history == 2 and cfg.noise_walk and cfg.noise_std > 0 and cfg.rollout_steps == 1
     with pytest.raises(ConfigError, match="unknown recipe"):
         recipe("fast")
 
 
-def test_cli_trains_with_the_rollout_recipe_and_reloads_the_step(tmp_path):
-    """`thrombojax train` without --config uses the rollout recipe (options above it); the
+def test_cli_trains_with_the_default_recipe_and_reloads_the_step(tmp_path):
+    """`thrombojax train` without --config uses the history recipe (options above it); the
     run records the frame and the wall cutoff; the loaded model steps as it trained; a
     rollout runs through it."""
     from dataset_factory import accelerating_sims
@@ -171,8 +173,8 @@ def test_cli_trains_with_the_rollout_recipe_and_reloads_the_step(tmp_path):
                  "--quiet"]) == 0
     loaded = load_trained(run)
     cfg = loaded.run.train
-    assert (cfg.frame, cfg.rollout_steps, cfg.pushforward_steps) == ("vessel", 3, 1)
-    assert loaded.step.frame == "vessel"
+    assert (cfg.frame, cfg.history, cfg.noise_walk, cfg.rollout_steps) == ("vessel", 2, True, 1)
+    assert loaded.step.frame == "vessel" and loaded.step.history == 2
     assert loaded.step.wall_cutoff == pytest.approx(loaded.config["wall_cutoff"])
     assert loaded.step.wall_cutoff > 0
     report = rollout_run(run, data, tmp_path / "rollout", progress=False, gif=False)

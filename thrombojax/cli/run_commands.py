@@ -21,8 +21,9 @@ def _add_train(sub) -> None:
         description=(
             "Train a step-by-step surrogate: AdamW with linear warm-up then cosine decay, "
             "masked MSE on clot nodes, random rotations, optional node subsampling and "
-            "BaryCentricSampling, and by default the rollout recipe on top (--recipe: input "
-            "noise, push-forward, a 3-step unrolled loss; '--recipe study' trains as the "
+            "BaryCentricSampling, and by default the history recipe on top (--recipe: the "
+            "step also reads the acceleration before t, random-walk input noise; '--recipe "
+            "rollout' a k-step loss with push-forward instead; '--recipe study' trains as the "
             "study did). Writes DIR/config.json, DIR/checkpoints/{best,last}, "
             "DIR/metrics.jsonl and DIR/loss.png. Options left out take the recipe's, the "
             "--config file's, else the study's values (each model's batch size and learning "
@@ -58,6 +59,9 @@ def _add_train(sub) -> None:
     p.add_argument("--noise-walk", action="store_true", default=None, help="with --history "
                    "H > 1: the noise is a random walk over all H input velocities "
                    "(learning-to-simulate's), not on the current frame alone")
+    p.add_argument("--noise-shared", type=NN_FLOAT, help="share (0-1) of the noise variance "
+                   "common to all clot nodes of a window: teaches the model that the whole "
+                   "clot's recent motion can be wrong, as in a rollout (default 0)")
     p.add_argument("--seed", type=NN_INT, help="seed of initialisation, data order, augmentations")
     p.add_argument("--skip-frames", type=NN_INT, help="first frames never used as frame t of a "
                    "window (default 0: every window)")
@@ -69,12 +73,14 @@ def _add_train(sub) -> None:
                    "differing only by seed into DIR/member_<i> (rollouts then report spread)")
     p.add_argument("--curriculum-epochs", type=NN_FLOAT, help="grow k from 1 to "
                    "--rollout-steps over this many epochs (default 0: k from the start)")
-    p.add_argument("--recipe", choices=("rollout", "study"), help="a named set of training "
-                   "options under the explicit ones: 'rollout' (the default without --config "
-                   "or --resume: noise 0.01 r, 1 push-forward step, a 3-step loss grown over 6 "
-                   "epochs, rotations up to pi; the stability ladder's best rung) or 'study' "
-                   "(the study's single-step recipe, TrainConfig's "
-                   "defaults)")
+    p.add_argument("--recipe", choices=("rollout", "history", "study"), help="a named set of "
+                   "training options under the explicit ones: 'history' (the default without "
+                   "--config or --resume: the step also reads the acceleration before t, "
+                   "--history 2, single-step loss, random-walk noise 0.01 r, rotations up to "
+                   "pi; the stability ladder's best rung at equal CPU time), 'rollout' (noise "
+                   "0.01 r, 1 push-forward step, a 3-step loss grown over 6 epochs, rotations "
+                   "up to pi; four times the cost per epoch) or 'study' (the study's "
+                   "single-step recipe, TrainConfig's defaults)")
     p.add_argument("--frame", choices=("global", "vessel"), help="frame of the learned step: "
                    "'vessel' works in the rigid vessel's principal axes (exactly invariant to "
                    "the vessel's orientation); default 'global'")
@@ -104,7 +110,7 @@ def _run_train(args) -> int:
              "nodes_per_sample", "bary_ratio", "noise_std", "seed", "skip_frames", "n_val",
              "n_test", "tiny", "rollout_steps", "noise_gamma", "pushforward_steps",
              "curriculum_epochs", "frame", "wall_features", "history", "noise_walk",
-             "stop_history_gradient")
+             "stop_history_gradient", "noise_shared")
     overrides = {k: getattr(args, k) for k in names if getattr(args, k) is not None}
     from thrombojax.train.recipes import DEFAULT_RECIPE, recipe
 

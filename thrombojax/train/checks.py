@@ -33,6 +33,7 @@ _RULES: dict[str, tuple[str, float, bool, bool]] = {
     "noise_std": ("float", 0.0, True, False),
     "wall_features": ("float", 0.0, True, False),
     "noise_gamma": ("float", 0.0, True, False),
+    "noise_shared": ("float", 0.0, True, False),
     "seed": ("int", 0, True, False),
     "split_seed": ("int", 0, True, False),
     "n_val": ("int", 0, True, False),
@@ -75,7 +76,7 @@ def check_train_values(cfg: Any) -> None:
     Also: the memory ``bary_ratio`` asks for even on one window
     (:func:`thrombojax.train.memory.check_train_memory`; the training loop checks again with the
     dataset's sizes), ``tiny``, ``noise_walk`` and ``stop_history_gradient`` booleans,
-    ``model_config`` an object.
+    ``model_config`` an object, ``noise_shared`` at most 1.
     """
     for name in _RULES:
         if hasattr(cfg, name):
@@ -84,6 +85,9 @@ def check_train_values(cfg: Any) -> None:
         n_windows=1, n_val_windows=0, bary_ratio=cfg.bary_ratio, batch_size=cfg.batch_size or 1,
         budget=1, length=3, max_neighbors=cfg.bary_max_neighbors,
     ), values={"bary_ratio": float(cfg.bary_ratio), "bary_max_neighbors": cfg.bary_max_neighbors})
+    if getattr(cfg, "noise_shared", 0.0) > 1.0:
+        raise ConfigError(f"--noise-shared (noise_shared) must be <= 1 (a share of the noise "
+                          f"variance), got {cfg.noise_shared!r}")
     for flag in ("tiny", "noise_walk", "stop_history_gradient"):
         if not isinstance(getattr(cfg, flag, False), bool):
             raise ConfigError(f"{_option(flag)} ({flag}) must be true or false, got "

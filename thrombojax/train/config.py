@@ -54,6 +54,8 @@ class TrainConfig:
         noise_gamma: fraction of the noise the model learns to remove from the next position.
         noise_walk: with ``history > 1``, the noise is a random walk over every input frame
             (learning-to-simulate's), not on s_t alone (:mod:`thrombojax.train.noise`).
+        noise_shared: share of the noise variance common to every clot node of a window, in
+            [0, 1] (0: independent per node; :mod:`thrombojax.train.noise`).
         seed: initialisation, data order, augmentations.
         split_seed: which simulations are validation / test.
         n_val, n_test: simulations held out for validation / test.
@@ -98,6 +100,7 @@ class TrainConfig:
     noise_std: float = 0.0
     noise_gamma: float = 0.1
     noise_walk: bool = False
+    noise_shared: float = 0.0
     seed: int = 0
     split_seed: int = 0
     n_val: int = 2

@@ -252,7 +252,8 @@ def train(
         if k not in train_steps:  # one compilation per k of the curriculum
             train_steps[k] = make_train_step(step_fn, tx, stats, noise_std=noise_std,
                                              noise_gamma=cfg.noise_gamma,
-                                             noise_walk=cfg.noise_walk, k=k,
+                                             noise_walk=cfg.noise_walk,
+                                             noise_shared=cfg.noise_shared, k=k,
                                              pushforward=cfg.pushforward_steps)
         return train_steps[k]
 

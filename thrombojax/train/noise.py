@@ -9,6 +9,13 @@ sees the corrupted velocity ``v_t + n`` and learns the acceleration
 (noise off: the study trained without it, so our numbers compare with its table) and
 ``gamma = 0.1`` (MeshGraphNets' cloth value) when it is switched on. ``std`` is in scaled
 coordinates.
+
+``shared``: the share of the noise's variance common to every clot node of a window (one
+Gaussian vector per window, added to every clot node, mixed with the independent per-node part
+so each node's noise keeps the std ``std``). Independent per-node noise is averaged away by
+message passing, so it does not teach a model that a whole clot's recent motion can be wrong,
+which is the error a rollout makes (measured: a history model that keeps a clot-wide
+acceleration the true clot does not have, ``experiments/results/ladder_budget/README.md``).
 """
 
 from __future__ import annotations
@@ -31,6 +38,7 @@ def add_training_noise(
     gamma: float = 0.1,
     current: int = 1,
     walk: bool = False,
+    shared: float = 0.0,
 ) -> jax.Array:
     """Corrupt s_t of one window and correct its targets s_{t+1}, s_{t+2}, ...
 
@@ -53,17 +61,33 @@ def add_training_noise(
             shifted by ``(1 - gamma)`` of s_t's noise: the model learns to remove the whole
             velocity error and ``gamma`` of the position error, from inputs that are all
             corrupted as a rollout corrupts them. ``H = 1`` is the same either way.
+        shared: share of the noise variance common to all clot nodes of the window, in
+            ``[0, 1]`` (0: independent per node, the draws of earlier versions; 1: the whole
+            clot moves together).
     Returns:
         ``[W, n_nodes, 3]`` the noisy window (s_{t-1}, s_t + n, s_{t+1} + (1 - gamma) n, ...).
     """
     if std == 0.0:
         return frames
+    if not 0.0 <= shared <= 1.0:
+        raise ValueError(f"shared must be in [0, 1], got {shared!r}")
     moving = clot_mask(node_type, mask)[:, None]
     if walk and current > 1:
-        steps = std / jnp.sqrt(current) * jax.random.normal(
-            key, (current, *frames.shape[1:]), frames.dtype)
+        steps = std / jnp.sqrt(current) * _normal(key, (current, *frames.shape[1:]),
+                                                  frames.dtype, shared)
         walked = jnp.where(moving[None], jnp.cumsum(jnp.cumsum(steps, axis=0), axis=0), 0.0)
         frames = frames.at[1:current + 1].add(walked)
         return frames.at[current + 1:].add((1.0 - gamma) * walked[-1])
-    noise = jnp.where(moving, std * jax.random.normal(key, frames.shape[1:], frames.dtype), 0.0)
+    noise = jnp.where(moving, std * _normal(key, frames.shape[1:], frames.dtype, shared), 0.0)
     return frames.at[current].add(noise).at[current + 1:].add((1.0 - gamma) * noise)
+
+
+def _normal(key: jax.Array, shape: tuple, dtype, shared: float) -> jax.Array:
+    """Unit Gaussian ``[..., n_nodes, 3]``; with ``shared > 0`` that share of the variance is one
+    draw per leading index common to every node (``shared = 0``: the plain draw of ``key``)."""
+    if shared == 0.0:
+        return jax.random.normal(key, shape, dtype)
+    k_node, k_common = jax.random.split(key)
+    node = jax.random.normal(k_node, shape, dtype)
+    common = jax.random.normal(k_common, (*shape[:-2], 1, shape[-1]), dtype)
+    return jnp.sqrt(1.0 - shared) * node + jnp.sqrt(shared) * common

@@ -102,6 +102,7 @@ def batch_loss(
     noise_std: float = 0.0,
     noise_gamma: float = 0.1,
     noise_walk: bool = False,
+    noise_shared: float = 0.0,
     k: int = 1,
     pushforward: int = 0,
     flat_batch: bool = False,
@@ -114,8 +115,9 @@ def batch_loss(
             ``W >= pushforward + k + H + 1``, ``H`` the step's history).
         rng: PRNG key for noise and dropout (``None`` in evaluation).
         train: training mode (noise, dropout).
-        noise_std, noise_gamma, noise_walk: training noise (:mod:`thrombojax.train.noise`;
-            ``noise_walk``: the random walk over a history of frames).
+        noise_std, noise_gamma, noise_walk, noise_shared: training noise
+            (:mod:`thrombojax.train.noise`; ``noise_walk``: the random walk over a history of
+            frames; ``noise_shared``: the share of its variance common to all clot nodes).
         k: steps of the unrolled loss (1: the single-step loss).
         pushforward: steps applied first without gradients (push-forward training).
         flat_batch: run the model once on the batch as one flat graph
@@ -137,7 +139,7 @@ def batch_loss(
             if train and noise_std > 0:
                 frames = add_training_noise(
                     noise_key, frames, node_type, mask, std=noise_std, gamma=noise_gamma,
-                    current=step.history, walk=noise_walk,
+                    current=step.history, walk=noise_walk, shared=noise_shared,
                 )
         return window_loss_terms(
             step, params, stats, frames, node_type, mask, k=k, pushforward=pushforward,
@@ -146,7 +148,8 @@ def batch_loss(
 
     if flat_batch and flat_batch_ok(step):
         terms = _flat_terms(step, params, stats, batch, keys, train=train, noise_std=noise_std,
-                            noise_gamma=noise_gamma, k=k, pushforward=pushforward)
+                            noise_gamma=noise_gamma, noise_shared=noise_shared, k=k,
+                            pushforward=pushforward)
     elif keys is None:
         terms = jax.vmap(lambda f, t, m: one(f, t, m, None))(
             batch.frames, batch.node_type, batch.mask
@@ -160,8 +163,8 @@ def batch_loss(
     return loss, metrics
 
 
-def _flat_terms(step, params, stats, batch, keys, *, train, noise_std, noise_gamma, k,
-                pushforward):
+def _flat_terms(step, params, stats, batch, keys, *, train, noise_std, noise_gamma,
+                noise_shared, k, pushforward):
     """The per-window loss terms with the model run once on the flat batch graph.
 
     Each sample's noise key is the one the vmapped form draws (the first half of its split key),
@@ -174,7 +177,7 @@ def _flat_terms(step, params, stats, batch, keys, *, train, noise_std, noise_gam
         model_key = pairs[0, 1]
         if train and noise_std > 0:
             frames = jax.vmap(functools.partial(add_training_noise, std=noise_std,
-                                                gamma=noise_gamma))(
+                                                gamma=noise_gamma, shared=noise_shared))(
                 pairs[:, 0], frames, batch.node_type, batch.mask)
     return flat_window_loss_terms(FlatStep(step), params, stats, frames, batch.node_type,
                                   batch.mask, k=k, pushforward=pushforward, train=train,
@@ -189,6 +192,7 @@ def make_train_step(
     noise_std: float = 0.0,
     noise_gamma: float = 0.1,
     noise_walk: bool = False,
+    noise_shared: float = 0.0,
     k: int = 1,
     pushforward: int = 0,
     donate: bool = True,
@@ -200,7 +204,7 @@ def make_train_step(
         model: the surrogate (static).
         tx: the optimiser.
         stats: target statistics (closed over, constants of the compiled step).
-        noise_std, noise_gamma, noise_walk: training noise (0: off).
+        noise_std, noise_gamma, noise_walk, noise_shared: training noise (0: off).
         k: steps of the unrolled loss (1: single step).
         pushforward: steps applied first without gradients (push-forward training).
         donate: donate the old state's buffers to the new one.
@@ -215,7 +219,8 @@ def make_train_step(
         def loss_fn(params):
             return batch_loss(
                 learned, params, stats, batch, rng, train=True,
-                noise_std=noise_std, noise_gamma=noise_gamma, noise_walk=noise_walk, k=k,
+                noise_std=noise_std, noise_gamma=noise_gamma, noise_walk=noise_walk,
+                noise_shared=noise_shared, k=k,
                 pushforward=pushforward,
                 flat_batch=flat_batch,
             )
