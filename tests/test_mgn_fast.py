@@ -44,7 +44,8 @@ def test_split_dense_is_dense_of_the_concatenation():
 
 @pytest.fixture(scope="module")
 def mgn_case():
-    config = get_config("mgn", tiny=True, radius=0.5, hidden=16, mlp_layers=2)
+    # the plain reference: no remat (MeshGraphNet's default is remat on)
+    config = get_config("mgn", tiny=True, radius=0.5, hidden=16, mlp_layers=2, remat=False)
     model = create_model("mgn", config)
     inputs = random_model_input(N_REAL, N_PAD, seed=2)
     graph = model.build_graph(inputs)
@@ -69,7 +70,7 @@ def _mgn_loss(config, factorised, slot_sum, inputs, graph):
     "factorised, slot_sum, remat",
     [(True, False, False), (False, True, False), (True, True, False), (True, False, True),
      (True, True, True)],
-    ids=["factorised", "slot_sum", "both", "factorised+remat", "both+remat"],
+    ids=["factorised", "slot_sum", "both", "factorised+remat (default)", "both+remat"],
 )
 def test_meshgraphnet_rewrites_equal_plain(mgn_case, factorised, slot_sum, remat):
     config, inputs, graph = mgn_case
@@ -86,6 +87,12 @@ def test_meshgraphnet_rewrites_equal_plain(mgn_case, factorised, slot_sum, remat
     np.testing.assert_allclose(loss_f, loss_p, rtol=TOL)
     assert_trees_close(grads_f, grads_p)
     assert all(float(jnp.max(jnp.abs(g))) > 0 for g in jax.tree_util.tree_leaves(grads_p))
+
+
+def test_the_default_meshgraphnet_is_factorised_with_remat():
+    """The study config and the tiny one train with remat (the equality above covers it)."""
+    assert get_config("mgn").remat and get_config("mgn", tiny=True).remat
+    assert not get_config("mgn", remat=False).remat
 
 
 def test_remat_lowers_the_compiled_peak(mgn_case):

@@ -38,7 +38,8 @@ the plain form: ``tests/test_mgn_fast.py``; speed: ``benchmarks/train_step.py``)
   each row instead (masked; the dummy node then aggregates zeros instead of the sentinel edges,
   which only ever feed sentinel edges). It measured slower in the training step on the CPU
   (``benchmarks/results/train_step_cpu.md``), so it is off by default.
-* ``config.remat``: every MLP but the decoder is rematerialised
+* ``config.remat`` (on by default, measured no slower on the CPU, ``docs/performance.md``):
+  every MLP but the decoder is rematerialised
   (:func:`thrombojax.models.layers.remat_call`): the backward pass recomputes its hidden layers
   instead of storing them, so a training step keeps about one ``[N, K, H]`` edge tensor per
   block instead of about ten, for about one more forward pass of compute (peaks:
