@@ -15,7 +15,7 @@ Gaussian vector per window, added to every clot node, mixed with the independent
 so each node's noise keeps the std ``std``). Independent per-node noise is averaged away by
 message passing, so it does not teach a model that a whole clot's recent motion can be wrong,
 which is the error a rollout makes (measured: a history model that keeps a clot-wide
-acceleration the true clot does not have, ``experiments/results/ladder_budget/README.md``).
+acceleration the true clot does not have, ``experiments/results/ladder/README.md``).
 """
 
 from __future__ import annotations
