@@ -6,6 +6,8 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+import os
+import pathlib
 import shutil
 
 import numpy as np
@@ -310,3 +312,37 @@ def test_bench_says_where_it_wrote_and_refuses_to_replace(tmp_path, capsys):
     assert main(argv) == 2
     one_line_error(capsys, "bench.json", "--force")
     assert (tmp_path / "b" / "bench.json").read_text() == before
+
+
+def test_force_deletes_old_checkpoints_out_of_the_loaders_path(tmp_path, monkeypatch):
+    """`train --force` renames the old checkpoints away before deleting them: a process killed
+    mid-deletion (here: rmtree interrupted after one file) leaves no half checkpoint at
+    checkpoints/, only a temporary the next run removes (the kill -9 trials found a
+    half-deleted best/1 before this)."""
+    import subprocess
+    import sys
+
+    from thrombojax.train import guards
+
+    run = tmp_path / "run"
+    (run / "checkpoints" / "best" / "1" / "params").mkdir(parents=True)
+    for name in ("_METADATA", "d0", "d1"):
+        (run / "checkpoints" / "best" / "1" / "params" / name).write_text("x")
+    (run / "notes.txt").write_text("mine")
+
+    def killed_rmtree(path, ignore_errors=False):
+        next(pathlib.Path(path).rglob("_METADATA")).unlink()  # deleted one file, then "killed"
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(guards.shutil, "rmtree", killed_rmtree)
+    with pytest.raises(KeyboardInterrupt):
+        guards.clear_run(run)
+    assert not (run / "checkpoints").exists()  # nothing half-deleted where loaders look
+    left = [p for p in run.iterdir() if p.name != "notes.txt"]
+    assert len(left) == 1 and ".tjxtmp-" in left[0].name
+    monkeypatch.undo()
+    dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"],
+                          capture_output=True, text=True, check=True).stdout.strip()
+    stale = left[0].rename(run / left[0].name.replace(f"-{os.getpid()}-", f"-{dead}-"))
+    guards.clear_run(run)  # the next run: the dead process's temporary goes
+    assert not stale.exists() and sorted(p.name for p in run.iterdir()) == ["notes.txt"]
