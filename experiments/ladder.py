@@ -89,6 +89,9 @@ from ladder_report import write_reports  # noqa: E402
 SMALL_MGN = {"hidden": 32, "processor_size": 5, "max_neighbors": 12}
 COMMON = {"batch_size": 4, "max_rotation": 0.0, "warmup_epochs": 2.0,
           "model_config": SMALL_MGN}
+# ``--size study``: the study's MeshGraphNet (hidden 128, 15 blocks, 32 neighbours) and batch 8,
+# for an accelerator (each rung otherwise as above)
+STUDY_SIZE = {"batch_size": 8, "max_rotation": 0.0, "warmup_epochs": 2.0}
 NOISE = {"noise_std": 0.01}  # vessel radii
 # the rotation rung's recipe (the `rollout` recipe of `thrombojax train`), shared by the
 # ensemble rung's members
@@ -146,9 +149,9 @@ RUNGS: tuple[Rung, ...] = (
 
 def _train_rung(rung: Rung, data: str, folder: pathlib.Path, split: dict, minutes: float,
                 max_epochs: int, epochs: int | None = None,
-                n_nodes: int | None = None) -> pathlib.Path:
+                n_nodes: int | None = None, common: dict = COMMON) -> pathlib.Path:
     run = folder / "run"
-    cfg = {**COMMON, **rung.train, **split, "nodes_per_sample": n_nodes}
+    cfg = {**common, **rung.train, **split, "nodes_per_sample": n_nodes}
     if latest_step(run / "checkpoints" / "last") is not None:
         info = json.loads((run / "config.json").read_text())
         if latest_step(run / "checkpoints" / "best") is not None and \
@@ -181,7 +184,7 @@ def _finished(run: pathlib.Path, total_steps: int) -> bool:
 
 
 def _member_runs(rung: Rung, out: pathlib.Path, data: str, split: dict,
-                 n_nodes: int | None) -> list[pathlib.Path]:
+                 n_nodes: int | None, common: dict = COMMON) -> list[pathlib.Path]:
     """The runs a rung evaluates: its own (or ``reuse``'s), plus for an ensemble members
     1 .. M-1 trained with the same recipe and epochs as member 0 and seeds 1 .. M-1."""
     first = out / rung.reuse / "run" if rung.reuse else out / rung.name / "run"
@@ -195,7 +198,8 @@ def _member_runs(rung: Rung, out: pathlib.Path, data: str, split: dict,
         folder.mkdir(parents=True, exist_ok=True)
         member = dataclasses.replace(rung, name=f"{rung.name} member {seed}",
                                      train={**rung.train, "seed": seed})
-        runs.append(_train_rung(member, data, folder, split, 0.0, epochs, epochs, n_nodes))
+        runs.append(_train_rung(member, data, folder, split, 0.0, epochs, epochs, n_nodes,
+                                common))
     return runs
 
 
@@ -297,7 +301,11 @@ def main(argv: list[str] | None = None) -> int:
                         help="train on and roll out a fixed subset of this many nodes (the "
                         "study's 2,048 for ClotEntry; default: all nodes)")
     parser.add_argument("--title", default="BendVessel", help="dataset label of the table")
+    parser.add_argument("--size", choices=("small", "study"), default="small",
+                        help="'small' (default): MeshGraphNet hidden 32, 5 blocks, batch 4, the "
+                        "CPU ladder; 'study': the study's MeshGraphNet and batch 8 (accelerator)")
     args = parser.parse_args(argv)
+    common = COMMON if args.size == "small" else STUDY_SIZE
     out = pathlib.Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     split = {"test_sims": args.test.split(","), "val_sims": args.val.split(",")}
@@ -315,8 +323,8 @@ def main(argv: list[str] | None = None) -> int:
             t = time.perf_counter()
             if not rung.reuse:
                 _train_rung(rung, args.dataset, folder, split, args.minutes, args.max_epochs,
-                            args.epochs, args.nodes)
-            runs = _member_runs(rung, out, args.dataset, split, args.nodes)
+                            args.epochs, args.nodes, common)
+            runs = _member_runs(rung, out, args.dataset, split, args.nodes, common)
             res = _evaluate(runs, args.dataset, rung.guards, args.nodes)
             res.update(rung=dataclasses.asdict(rung) | {"train": {k: str(v) for k, v in
                                                                    rung.train.items()}},
@@ -324,7 +332,7 @@ def main(argv: list[str] | None = None) -> int:
             print(f"  {rung.name}: MSE@full / CV = "
                   f"{res['mean']['mse_full'] / res['mean']['mse_full_cv']:.2f}", flush=True)
         if rung.members > 1 and "members_alone" not in res:  # also for results made before it
-            runs = _member_runs(rung, out, args.dataset, split, args.nodes)
+            runs = _member_runs(rung, out, args.dataset, split, args.nodes, common)
             res["members_alone"] = _members_alone(runs, args.dataset, rung.guards, args.nodes)
         elif done.is_file():
             results[rung.name] = res

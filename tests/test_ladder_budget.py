@@ -108,3 +108,23 @@ def test_members_alone_reports_every_seed(tmp_path, monkeypatch):
     line = report.seed_lines({"ens": {"members_alone": alone}, "single": {}})
     assert "ens" in line and "0.50 / 3.00" in line and "5.00 / 30.00 r" in line
     assert "single" not in line and line.count("\n") == 1
+
+
+def test_study_size_trains_the_study_model_at_batch_8(tmp_path, monkeypatch):
+    """``--size study`` leaves the model config to the study's (no small override), batch 8;
+    the default stays the small CPU model at batch 4."""
+    ladder = _ladder(monkeypatch)
+    calls = []
+
+    def fake_train(data, model, out, **kw):
+        calls.append(kw)
+
+    monkeypatch.setattr(ladder, "train", fake_train)
+    rung = next(r for r in ladder.RUNGS if r.name == "history_walk")
+    ladder._train_rung(rung, "d.h5", tmp_path / "a", {}, 0.0, 5, epochs=2,
+                       common=ladder.STUDY_SIZE)
+    ladder._train_rung(rung, "d.h5", tmp_path / "b", {}, 0.0, 5, epochs=2)
+    study, small = calls
+    assert "model_config" not in study and study["batch_size"] == 8
+    assert small["model_config"] == ladder.SMALL_MGN and small["batch_size"] == 4
+    assert study["noise_walk"] and study["history"] == 2 == small["history"]
