@@ -24,9 +24,10 @@ k-step recipe with the history, its random-walk noise and no gradient through th
 features (``stop_history_gradient``); and the random-walk rung with half of the noise's
 variance common to all clot nodes of a window (``noise_shared``), with an ensemble of three of
 it (its seed spread); and the random-walk rung with three times the noise (0.03 r), with an
-ensemble of three. Every rung
-trains the same small MeshGraphNet for the same wall-clock budget (the
-epoch count is calibrated on this machine by timing one epoch), then is measured on held-out
+ensemble of three; and the random-walk rung with wall features (``walk_wall``). Every rung
+trains the same small MeshGraphNet (``--size study``: the study's, for an accelerator) for the
+same wall-clock budget (the epoch count is calibrated on this machine by timing one epoch), or
+for ``--epochs`` epochs, then is measured on held-out
 simulations (the split is by name: the last rotation is outside the training range):
 
 - single-step MSE over all windows and over the rollout phase (frames >= the dataset's
@@ -144,6 +145,8 @@ RUNGS: tuple[Rung, ...] = (
     Rung("walk_noise3", {**HISTORY, "noise_walk": True, "noise_std": 0.03}, guards=True),
     Rung("noise3_ensemble", {**HISTORY, "noise_walk": True, "noise_std": 0.03}, guards=True,
          reuse="walk_noise3", members=3),
+    # the default recipe with the distance and direction to the nearest vessel node (1.5 r)
+    Rung("walk_wall", {**HISTORY, "noise_walk": True, "wall_features": 1.5}, guards=True),
 )
 
 
