@@ -47,7 +47,7 @@ import jax
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from peer_common import CASE_LABELS, write_inputs  # noqa: E402
+from peer_common import CASE_LABELS, read_inputs, write_inputs  # noqa: E402
 from peer_jax import prepare  # noqa: E402
 
 from thrombojax.eval.tables import environment  # noqa: E402
@@ -185,6 +185,7 @@ def main(argv: list[str] | None = None) -> int:
         for n in {*args.sizes, args.forward_nodes}:
             inputs[n] = os.path.join(tmp, f"inputs_{n}.npz")
             write_inputs(inputs[n], n)
+        samples = {n: read_inputs(path) for n, path in inputs.items()}
         reference: dict = {}
         plan = [(p, list(args.cases)) for p in args.precisions] + [
             (p, [k for k in args.cases if k in ("step", "train")]) for p in args.step_precisions]
@@ -201,8 +202,7 @@ def main(argv: list[str] | None = None) -> int:
                                    "error": f"{type(exc).__name__}: {str(exc)[:200]}"}
                         accel = row.pop("_accel", None)
                         if accel is not None:
-                            from peer_common import read_inputs
-                            a = _acceleration(read_inputs(inputs[n]), accel)
+                            a = _acceleration(samples[n], accel)
                             ref = reference.setdefault((model, n), a)
                             row["dev"] = float(np.linalg.norm(a - ref) /
                                                max(np.linalg.norm(ref), 1e-30))

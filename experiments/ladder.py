@@ -88,11 +88,11 @@ sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))  # the sibling 
 from ladder_report import write_reports  # noqa: E402
 
 SMALL_MGN = {"hidden": 32, "processor_size": 5, "max_neighbors": 12}
-COMMON = {"batch_size": 4, "max_rotation": 0.0, "warmup_epochs": 2.0,
-          "model_config": SMALL_MGN}
+_SCHEDULE = {"max_rotation": 0.0, "warmup_epochs": 2.0}
+COMMON = {**_SCHEDULE, "batch_size": 4, "model_config": SMALL_MGN}
 # ``--size study``: the study's MeshGraphNet (hidden 128, 15 blocks, 32 neighbours) and batch 8,
 # for an accelerator (each rung otherwise as above)
-STUDY_SIZE = {"batch_size": 8, "max_rotation": 0.0, "warmup_epochs": 2.0}
+STUDY_SIZE = {**_SCHEDULE, "batch_size": 8}
 NOISE = {"noise_std": 0.01}  # vessel radii
 # the rotation rung's recipe (the `rollout` recipe of `thrombojax train`), shared by the
 # ensemble rung's members
@@ -101,6 +101,7 @@ ROTATION = {**NOISE, "pushforward_steps": 1, "rollout_steps": 3, "curriculum_epo
 # a step that also reads the acceleration before t, trained with the single-step loss (with
 # ``noise_walk``: the `history` recipe, the default of `thrombojax train`)
 HISTORY = {**NOISE, "max_rotation": np.pi, "history": 2}
+WALK = {**HISTORY, "noise_walk": True}  # the `history` recipe (rung `history_walk`)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -133,20 +134,20 @@ RUNGS: tuple[Rung, ...] = (
     Rung("history_1step", HISTORY, guards=True),
     Rung("history3", {**HISTORY, "history": 3}, guards=True),
     Rung("history_ensemble", HISTORY, guards=True, reuse="history_1step", members=3),
-    Rung("history_walk", {**HISTORY, "noise_walk": True}, guards=True),
-    Rung("walk_ensemble", {**HISTORY, "noise_walk": True}, guards=True, reuse="history_walk",
+    Rung("history_walk", WALK, guards=True),
+    Rung("walk_ensemble", WALK, guards=True, reuse="history_walk",
          members=3),
-    Rung("history_pf", {**HISTORY, "noise_walk": True, "pushforward_steps": 1}, guards=True),
+    Rung("history_pf", {**WALK, "pushforward_steps": 1}, guards=True),
     Rung("history_sg", {**ROTATION, "history": 2, "noise_walk": True,
                         "stop_history_gradient": True}, guards=True),
-    Rung("walk_shared", {**HISTORY, "noise_walk": True, "noise_shared": 0.5}, guards=True),
-    Rung("shared_ensemble", {**HISTORY, "noise_walk": True, "noise_shared": 0.5}, guards=True,
+    Rung("walk_shared", {**WALK, "noise_shared": 0.5}, guards=True),
+    Rung("shared_ensemble", {**WALK, "noise_shared": 0.5}, guards=True,
          reuse="walk_shared", members=3),
-    Rung("walk_noise3", {**HISTORY, "noise_walk": True, "noise_std": 0.03}, guards=True),
-    Rung("noise3_ensemble", {**HISTORY, "noise_walk": True, "noise_std": 0.03}, guards=True,
+    Rung("walk_noise3", {**WALK, "noise_std": 0.03}, guards=True),
+    Rung("noise3_ensemble", {**WALK, "noise_std": 0.03}, guards=True,
          reuse="walk_noise3", members=3),
     # the default recipe with the distance and direction to the nearest vessel node (1.5 r)
-    Rung("walk_wall", {**HISTORY, "noise_walk": True, "wall_features": 1.5}, guards=True),
+    Rung("walk_wall", {**WALK, "wall_features": 1.5}, guards=True),
 )
 
 

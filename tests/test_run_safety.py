@@ -334,7 +334,7 @@ def test_force_deletes_old_checkpoints_out_of_the_loaders_path(tmp_path, monkeyp
         next(pathlib.Path(path).rglob("_METADATA")).unlink()  # deleted one file, then "killed"
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(guards.shutil, "rmtree", killed_rmtree)
+    monkeypatch.setattr(shutil, "rmtree", killed_rmtree)
     with pytest.raises(KeyboardInterrupt):
         guards.clear_run(run)
     assert not (run / "checkpoints").exists()  # nothing half-deleted where loaders look

@@ -40,6 +40,7 @@ __all__ = [
     "atomic_path",
     "atomic_write_text",
     "clean_temporaries",
+    "remove_atomically",
     "input_files",
     "temp_path",
     "fresh_owned_folder",
@@ -201,6 +202,22 @@ def clean_temporaries(folder: str | os.PathLike) -> list[Path]:
                 _remove(entry)
                 removed.append(entry)
     return removed
+
+
+def remove_atomically(path: str | os.PathLike) -> None:
+    """Remove ``path`` (a file, link or folder tree) so that no reader ever sees it half-removed.
+
+    It is first renamed to a temporary beside it (one atomic step), then deleted: a process
+    killed during the deletion leaves only that temporary, which :func:`clean_temporaries`
+    removes on the next run in the folder (as it does here, first). A missing ``path`` is fine.
+    """
+    path = Path(path)
+    if not (path.exists() or path.is_symlink()):
+        clean_temporaries(path.parent)
+        return
+    doomed = temp_path(path, suffix="")  # also clears the temporaries of killed removals
+    path.rename(doomed)
+    _remove(doomed)
 
 
 def temp_path(target: str | os.PathLike, suffix: str | None = None) -> Path:

@@ -47,6 +47,10 @@ _RULES: dict[str, tuple[str, float, bool, bool]] = {
 }
 
 
+_HIGH: dict[str, float] = {"noise_shared": 1.0}
+"""Inclusive upper bounds of the fields that have one (``noise_shared``: a share of a variance)."""
+
+
 def _option(name: str) -> str:
     return "--" + name.replace("_", "-")
 
@@ -68,6 +72,8 @@ def _check_one(name: str, value: Any) -> None:
     if value < low or (value == low and not inclusive):
         sign = ">=" if inclusive else ">"
         raise ConfigError(f"{_option(name)} ({name}) must be {sign} {low:g}, got {value!r}")
+    if name in _HIGH and value > _HIGH[name]:
+        raise ConfigError(f"{_option(name)} ({name}) must be <= {_HIGH[name]:g}, got {value!r}")
 
 
 def check_train_values(cfg: Any) -> None:
@@ -76,7 +82,7 @@ def check_train_values(cfg: Any) -> None:
     Also: the memory ``bary_ratio`` asks for even on one window
     (:func:`thrombojax.train.memory.check_train_memory`; the training loop checks again with the
     dataset's sizes), ``tiny``, ``noise_walk`` and ``stop_history_gradient`` booleans,
-    ``model_config`` an object, ``noise_shared`` at most 1.
+    ``model_config`` an object; upper bounds in :data:`_HIGH`.
     """
     for name in _RULES:
         if hasattr(cfg, name):
@@ -85,9 +91,6 @@ def check_train_values(cfg: Any) -> None:
         n_windows=1, n_val_windows=0, bary_ratio=cfg.bary_ratio, batch_size=cfg.batch_size or 1,
         budget=1, length=3, max_neighbors=cfg.bary_max_neighbors,
     ), values={"bary_ratio": float(cfg.bary_ratio), "bary_max_neighbors": cfg.bary_max_neighbors})
-    if getattr(cfg, "noise_shared", 0.0) > 1.0:
-        raise ConfigError(f"--noise-shared (noise_shared) must be <= 1 (a share of the noise "
-                          f"variance), got {cfg.noise_shared!r}")
     for flag in ("tiny", "noise_walk", "stop_history_gradient"):
         if not isinstance(getattr(cfg, flag, False), bool):
             raise ConfigError(f"{_option(flag)} ({flag}) must be true or false, got "

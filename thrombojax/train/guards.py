@@ -15,7 +15,6 @@ from __future__ import annotations
 import hashlib
 import math
 import pathlib
-import shutil
 import warnings
 from collections.abc import Iterable, Mapping
 from typing import Any
@@ -156,21 +155,13 @@ def clear_run(run_dir: Any) -> None:
     """Remove a previous run's files from ``run_dir`` (``train --force``): its checkpoints,
     ``config.json``, ``metrics.jsonl`` and ``loss.png``; nothing else in the folder.
 
-    The checkpoints folder is first renamed to a temporary name (one atomic step), then deleted:
-    a process killed while deleting leaves a temporary that the next run removes
-    (:func:`thrombojax.io.outputs.clean_temporaries`), never a half-deleted checkpoint at the
-    path a loader reads (``tests/test_kill_trials_train.py``)."""
-    from thrombojax.io.outputs import clean_temporaries, temp_path
+    The checkpoints folder goes with :func:`thrombojax.io.outputs.remove_atomically`: a process
+    killed while deleting leaves a temporary that the next run removes, never a half-deleted
+    checkpoint at the path a loader reads (``tests/test_kill_trials_train.py``)."""
+    from thrombojax.io.outputs import remove_atomically
 
     run_dir = pathlib.Path(run_dir)
-    clean_temporaries(run_dir)  # a killed earlier deletion
-    ckpt = run_dir / "checkpoints"
-    if ckpt.is_dir() and not ckpt.is_symlink():
-        doomed = temp_path(ckpt, suffix="")
-        ckpt.rename(doomed)
-        shutil.rmtree(doomed, ignore_errors=True)
-    elif ckpt.exists() or ckpt.is_symlink():
-        ckpt.unlink()
+    remove_atomically(run_dir / "checkpoints")
     for name in RUN_FILES:
         (run_dir / name).unlink(missing_ok=True)
 
