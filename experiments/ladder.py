@@ -24,11 +24,17 @@ k-step recipe with the history, its random-walk noise and no gradient through th
 features (``stop_history_gradient``); and the random-walk rung with half of the noise's
 variance common to all clot nodes of a window (``noise_shared``), with an ensemble of three of
 it (its seed spread); and the random-walk rung with three times the noise (0.03 r), with an
-ensemble of three; and the random-walk rung with wall features (``walk_wall``). Every rung
-trains the same small MeshGraphNet (``--size study``: the study's, for an accelerator) for the
-same wall-clock budget (the epoch count is calibrated on this machine by timing one epoch), or
-for ``--epochs`` epochs, then is measured on held-out
-simulations (the split is by name: the last rotation is outside the training range):
+ensemble of three; and the random-walk rung with wall features (``walk_wall``); the
+random-walk rung's model with the guards off (``walk_alone``), and the random-walk rung trained
+with wall noise (``walk_wallnoise``, clot nodes moved through the wall in the input frames, the
+targets by half as much, ``thrombojax.train.noise.add_wall_noise``), rolled out alone and with
+the guards (``wallnoise_guards``), and it with signed wall features (the signed distance to the
+wall and its normal), alone and with the guards (``wallnoise_signed``, ``signed_guards``), the
+signed features without the wall noise (``signed_alone``) and with twice the wall noise
+(``wallnoise2_signed``), alone. Every rung trains the same small MeshGraphNet (``--size
+study``: the study's, for an accelerator) for the same wall-clock budget (the epoch count is
+calibrated on this machine by timing one epoch), or for ``--epochs`` epochs, then is measured
+on held-out simulations (the split is by name: the last rotation is outside the training range):
 
 - single-step MSE over all windows and over the rollout phase (frames >= the dataset's
   ``skip_frames``), as a ratio to constant velocity (CV);
@@ -148,6 +154,22 @@ RUNGS: tuple[Rung, ...] = (
          reuse="walk_noise3", members=3),
     # the default recipe with the distance and direction to the nearest vessel node (1.5 r)
     Rung("walk_wall", {**WALK, "wall_features": 1.5}, guards=True),
+    # the models alone (guards off): the default recipe, and it with wall noise (clot nodes near
+    # the wall moved through it, targets kept: the model learns to come back; 0.1 r)
+    Rung("walk_alone", WALK, reuse="history_walk"),
+    Rung("walk_wallnoise", {**WALK, "wall_noise": 0.1}),
+    Rung("wallnoise_guards", {**WALK, "wall_noise": 0.1}, guards=True, reuse="walk_wallnoise"),
+    # wall noise with signed wall features (the signed distance to the wall and its normal,
+    # cut off at 0.5 r: what tells a node that crossed the wall from one inside), alone and
+    # with the guards
+    Rung("wallnoise_signed", {**WALK, "wall_noise": 0.1, "wall_features": 0.5,
+                              "wall_signed": True}),
+    Rung("signed_guards", {**WALK, "wall_noise": 0.1, "wall_features": 0.5, "wall_signed": True},
+         guards=True, reuse="wallnoise_signed"),
+    # the control (signed features without the wall noise) and twice the wall noise, alone
+    Rung("signed_alone", {**WALK, "wall_features": 0.5, "wall_signed": True}),
+    Rung("wallnoise2_signed", {**WALK, "wall_noise": 0.2, "wall_features": 0.5,
+                               "wall_signed": True}),
 )
 
 

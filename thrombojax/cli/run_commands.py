@@ -62,6 +62,10 @@ def _add_train(sub) -> None:
     p.add_argument("--noise-shared", type=NN_FLOAT, help="share (0-1) of the noise variance "
                    "common to all clot nodes of a window: teaches the model that the whole "
                    "clot's recent motion can be wrong, as in a rollout (default 0)")
+    p.add_argument("--wall-noise", type=NN_FLOAT, help="wall noise, in vessel radii: clot nodes "
+                   "within this distance of the wall are moved through it (half of them, to a "
+                   "depth of this times |N(0,1)|) while the targets stay, so the model learns to "
+                   "bring a node that crossed the wall back (default 0: off)")
     p.add_argument("--seed", type=NN_INT, help="seed of initialisation, data order, augmentations")
     p.add_argument("--skip-frames", type=NN_INT, help="first frames never used as frame t of a "
                    "window (default 0: every window)")
@@ -93,6 +97,10 @@ def _add_train(sub) -> None:
     p.add_argument("--wall-features", type=NN_FLOAT, help="give clot nodes the distance and "
                    "direction to the nearest vessel node, cut off at this many vessel radii "
                    "(default 0: off)")
+    p.add_argument("--wall-signed", action="store_true", default=None, help="with "
+                   "--wall-features: the features are the signed distance to the wall "
+                   "(positive outside) and its outward normal, which tell a node that crossed "
+                   "the wall from one inside it")
     p.add_argument("--n-val", type=NN_INT, help="validation simulations (default 2)")
     p.add_argument("--n-test", type=NN_INT, help="test simulations, never trained on (default 1)")
     p.add_argument("--tiny", action="store_true", default=None, help="tiny model config")
@@ -110,7 +118,7 @@ def _run_train(args) -> int:
              "nodes_per_sample", "bary_ratio", "noise_std", "seed", "skip_frames", "n_val",
              "n_test", "tiny", "rollout_steps", "noise_gamma", "pushforward_steps",
              "curriculum_epochs", "frame", "wall_features", "history", "noise_walk",
-             "stop_history_gradient", "noise_shared")
+             "stop_history_gradient", "noise_shared", "wall_noise", "wall_signed")
     overrides = {k: getattr(args, k) for k in names if getattr(args, k) is not None}
     from thrombojax.train.recipes import DEFAULT_RECIPE, recipe
 

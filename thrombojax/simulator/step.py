@@ -32,7 +32,10 @@ and :meth:`LearnedStep.normalized_target` is what the training loss compares ``o
 Wall features: ``make_step(model, wall_cutoff=c)`` (``c > 0``, scaled units) appends to every
 clot node's input the distance and direction to its nearest vessel node
 (:func:`thrombojax.graph.wall_nodes.wall_node_features`), so the model knows where the wall is
-even when no vessel node is among its graph neighbours.
+even when no vessel node is among its graph neighbours; ``make_step(model, wall_cutoff=c,
+wall_signed=True)`` gives instead the signed distance to the wall and its outward normal
+(:func:`thrombojax.graph.wall_nodes.signed_wall_features`), which tell a node that crossed the
+wall from one inside it.
 
 History: ``make_step(model, history=H)`` (``H >= 2``) also gives the model the accelerations of
 the ``H - 1`` steps before t, ``a_{t-j} = s_{t-j+1} - 2 s_{t-j} + s_{t-j-1}`` (in the step's frame,
@@ -69,7 +72,7 @@ from thrombojax.errors import ConfigError
 from thrombojax.graph.frame import FRAMES, VesselFrame, vessel_frame
 from thrombojax.graph.grid import GridSpec
 from thrombojax.graph.neighbors import graph_overflow
-from thrombojax.graph.wall_nodes import wall_node_features
+from thrombojax.graph.wall_nodes import signed_wall_features, wall_node_features
 from thrombojax.models.registry import Surrogate
 from thrombojax.types import ModelInput, TargetStats, clot_mask
 
@@ -164,6 +167,9 @@ class LearnedStep:
         frame: ``"global"`` (the dataset's axes) or ``"vessel"`` (the rigid vessel's frame,
             see the module docstring).
         wall_cutoff: cutoff of the wall features in scaled units (0: no wall features).
+        wall_signed: the wall features are the signed distance to the wall and its outward
+            normal (:func:`thrombojax.graph.wall_nodes.signed_wall_features`), not the distance
+            and direction to the nearest vessel node.
         grid: cell grid of the model's radius graph, in the step's frame (None: dense search).
         history: frames before t the step reads (1: s_{t-1}, the velocity alone; H >= 2: also
             the H - 1 accelerations before t, see the module docstring).
@@ -175,6 +181,7 @@ class LearnedStep:
     model: Surrogate
     frame: str = "global"
     wall_cutoff: float = 0.0
+    wall_signed: bool = False
     grid: GridSpec | None = None
     history: int = 1
     stop_history_gradient: bool = False
@@ -272,7 +279,8 @@ class LearnedStep:
                                        jnp.sqrt(jnp.mean(stats.std ** 2)))
             extra.append(jax.lax.stop_gradient(feats) if self.stop_history_gradient else feats)
         if self.wall_cutoff > 0:
-            extra.append(wall_node_features(x_cur, node_type, mask, cutoff=self.wall_cutoff))
+            features = signed_wall_features if self.wall_signed else wall_node_features
+            extra.append(features(x_cur, node_type, mask, cutoff=self.wall_cutoff))
         if extra:
             inputs = inputs.replace(extra=jnp.concatenate(extra, axis=-1))
         return inputs
@@ -337,12 +345,13 @@ def _init(step: LearnedStep, rng, x_prev, x_cur, node_type, mask) -> dict:
 
 def make_step(model: Surrogate, frame: str = "global", wall_cutoff: float = 0.0,
               grid: GridSpec | None = None, history: int = 1,
-              stop_history_gradient: bool = False) -> LearnedStep:
+              stop_history_gradient: bool = False, wall_signed: bool = False) -> LearnedStep:
     """The learned simulator of a surrogate in ``frame``, with wall features when
     ``wall_cutoff > 0``, the cell ``grid`` where it pays and ``history`` previous frames (see
     the module docstring and :class:`LearnedStep`)."""
     return LearnedStep(model=model, frame=frame, wall_cutoff=float(wall_cutoff), grid=grid,
-                       history=history, stop_history_gradient=bool(stop_history_gradient))
+                       history=history, stop_history_gradient=bool(stop_history_gradient),
+                       wall_signed=bool(wall_signed))
 
 
 def past_accelerations(x_prev: jax.Array, x_cur: jax.Array, mask: jax.Array,

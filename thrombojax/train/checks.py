@@ -34,6 +34,7 @@ _RULES: dict[str, tuple[str, float, bool, bool]] = {
     "wall_features": ("float", 0.0, True, False),
     "noise_gamma": ("float", 0.0, True, False),
     "noise_shared": ("float", 0.0, True, False),
+    "wall_noise": ("float", 0.0, True, False),
     "seed": ("int", 0, True, False),
     "split_seed": ("int", 0, True, False),
     "n_val": ("int", 0, True, False),
@@ -81,7 +82,8 @@ def check_train_values(cfg: Any) -> None:
 
     Also: the memory ``bary_ratio`` asks for even on one window
     (:func:`thrombojax.train.memory.check_train_memory`; the training loop checks again with the
-    dataset's sizes), ``tiny``, ``noise_walk`` and ``stop_history_gradient`` booleans,
+    dataset's sizes), ``tiny``, ``noise_walk``, ``stop_history_gradient`` and ``wall_signed``
+    booleans (``wall_signed`` only with ``wall_features``),
     ``model_config`` an object; upper bounds in :data:`_HIGH`.
     """
     for name in _RULES:
@@ -91,9 +93,12 @@ def check_train_values(cfg: Any) -> None:
         n_windows=1, n_val_windows=0, bary_ratio=cfg.bary_ratio, batch_size=cfg.batch_size or 1,
         budget=1, length=3, max_neighbors=cfg.bary_max_neighbors,
     ), values={"bary_ratio": float(cfg.bary_ratio), "bary_max_neighbors": cfg.bary_max_neighbors})
-    for flag in ("tiny", "noise_walk", "stop_history_gradient"):
+    for flag in ("tiny", "noise_walk", "stop_history_gradient", "wall_signed"):
         if not isinstance(getattr(cfg, flag, False), bool):
             raise ConfigError(f"{_option(flag)} ({flag}) must be true or false, got "
                               f"{getattr(cfg, flag)!r}")
+    if getattr(cfg, "wall_signed", False) and not getattr(cfg, "wall_features", 0.0) > 0:
+        raise ConfigError("--wall-signed (wall_signed) needs --wall-features C > 0 (the cutoff "
+                          "of the features it changes)")
     if not isinstance(cfg.model_config, dict):
         raise ConfigError(f"model_config must be a JSON object, got {cfg.model_config!r}")

@@ -56,6 +56,10 @@ class TrainConfig:
             (learning-to-simulate's), not on s_t alone (:mod:`thrombojax.train.noise`).
         noise_shared: share of the noise variance common to every clot node of a window, in
             [0, 1] (0: independent per node; :mod:`thrombojax.train.noise`).
+        wall_noise: wall noise, in vessel radii: clot nodes within this distance of the wall
+            are moved through it (half of them, to a depth of this times ``|N(0, 1)|``) in s_t
+            while the targets stay, so the model learns to bring a node that crossed the wall
+            back (0: off; :func:`thrombojax.train.noise.add_wall_noise`).
         seed: initialisation, data order, augmentations.
         split_seed: which simulations are validation / test.
         n_val, n_test: simulations held out for validation / test.
@@ -76,6 +80,9 @@ class TrainConfig:
         wall_features: cutoff, in vessel radii, of the per-node distance and direction to the
             nearest vessel node appended to the clot nodes' inputs (0: off;
             :func:`thrombojax.graph.wall_nodes.wall_node_features`).
+        wall_signed: with ``wall_features``, the features are the signed distance to the wall
+            (positive outside) and its outward normal instead
+            (:func:`thrombojax.graph.wall_nodes.signed_wall_features`).
         history: frames before t the learned step reads (1: the velocity alone; H >= 2: also
             the H - 1 accelerations before t, :mod:`thrombojax.simulator.step`); windows grow
             by H - 1 frames.
@@ -101,6 +108,7 @@ class TrainConfig:
     noise_gamma: float = 0.1
     noise_walk: bool = False
     noise_shared: float = 0.0
+    wall_noise: float = 0.0
     seed: int = 0
     split_seed: int = 0
     n_val: int = 2
@@ -114,6 +122,7 @@ class TrainConfig:
     curriculum_epochs: float = 0.0
     frame: str = "global"
     wall_features: float = 0.0
+    wall_signed: bool = False
     history: int = 1
     stop_history_gradient: bool = False
     tiny: bool = False

@@ -215,10 +215,11 @@ def train(
     run_key, init_key = jax.random.split(jax.random.PRNGKey(cfg.seed))
     # radii -> scaled; the radius (possibly a geometric estimate) only when it is needed
     radius = (vessel_radius(ds) / float(scaling.scale)
-              if cfg.noise_std > 0 or cfg.wall_features > 0 else 0.0)
+              if cfg.noise_std > 0 or cfg.wall_features > 0 or cfg.wall_noise > 0 else 0.0)
     wall_cutoff = cfg.wall_features * radius
     step_fn = make_step(model, cfg.frame, wall_cutoff, history=cfg.history,
-                        stop_history_gradient=cfg.stop_history_gradient)
+                        stop_history_gradient=cfg.stop_history_gradient,
+                        wall_signed=cfg.wall_signed)
     state = init_state(step_fn, tx, init_key, batch_of(plan_of(epoch=0)[0]))
     run_config = {
         **RunConfig(model=model_name, dataset=str(pathlib.Path(dataset_path).resolve()),
@@ -253,7 +254,8 @@ def train(
             train_steps[k] = make_train_step(step_fn, tx, stats, noise_std=noise_std,
                                              noise_gamma=cfg.noise_gamma,
                                              noise_walk=cfg.noise_walk,
-                                             noise_shared=cfg.noise_shared, k=k,
+                                             noise_shared=cfg.noise_shared,
+                                             wall_noise=cfg.wall_noise * radius, k=k,
                                              pushforward=cfg.pushforward_steps)
         return train_steps[k]
 

@@ -16,6 +16,17 @@ so each node's noise keeps the std ``std``). Independent per-node noise is avera
 message passing, so it does not teach a model that a whole clot's recent motion can be wrong,
 which is the error a rollout makes (measured: a history model that keeps a clot-wide
 acceleration the true clot does not have, ``experiments/results/ladder/README.md``).
+
+Wall noise (:func:`add_wall_noise`): the states a rollout leaves the vessel by are states the
+data never shows (the true clot never crosses the wall; the Gaussian noise above is far smaller
+than a rollout's drift). Clot nodes within ``std`` of the wall are, each with probability 1/2,
+moved through it along the outward wall normal to a signed distance ``std |z|`` outside
+(:func:`thrombojax.graph.wall_nodes.local_wall_plane`, from the frame alone), in every input
+frame alike (the node has drifted out and moves with its true velocity, as in a rollout), and
+the later frames keep ``1 - gamma`` of the move (default ``gamma = 1/2``): the model learns to
+take a node that crossed the wall back toward it by half the crossing per step. Only nodes
+outside the wall are corrupted, so a clean node inside never looks like a corrupted one (no
+bias on clean inputs).
 """
 
 from __future__ import annotations
@@ -23,9 +34,10 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
+from thrombojax.graph.wall_nodes import local_wall_plane
 from thrombojax.types import clot_mask
 
-__all__ = ["add_training_noise"]
+__all__ = ["add_training_noise", "add_wall_noise"]
 
 
 def add_training_noise(
@@ -91,3 +103,46 @@ def _normal(key: jax.Array, shape: tuple, dtype, shared: float) -> jax.Array:
     node = jax.random.normal(k_node, shape, dtype)
     common = jax.random.normal(k_common, (*shape[:-2], 1, shape[-1]), dtype)
     return jnp.sqrt(1.0 - shared) * node + jnp.sqrt(shared) * common
+
+
+def add_wall_noise(
+    key: jax.Array,
+    frames: jax.Array,
+    node_type: jax.Array,
+    mask: jax.Array,
+    *,
+    std: float,
+    current: int = 1,
+    gamma: float = 0.5,
+) -> jax.Array:
+    """Move clot nodes near the wall through it in every input frame (module docstring).
+
+    Args:
+        key: PRNG key.
+        frames: ``[W, n_nodes, 3]`` the window, scaled coordinates; ``frames[current]`` is s_t,
+            the frames before it the step's inputs.
+        node_type: ``[n_nodes]`` NodeType values. mask: ``[n_nodes]`` real-node mask.
+        std: scale of the crossing, scaled coordinates (0 returns ``frames`` unchanged). Clot
+            nodes with a signed wall distance (in s_t) above ``-std`` are candidates; each chosen
+            one (probability 1/2) lands at ``max(signed, 0) + std |z|`` outside, ``z ~ N(0, 1)``.
+        current: index of s_t in the window (the step's ``history``).
+        gamma: share of the move the model learns to remove in one step, in ``[0, 1]``: the
+            frames after s_t move by ``(1 - gamma)`` of it.
+    Returns:
+        ``[W, n_nodes, 3]``: the input frames ``0 .. current`` moved alike, the later frames by
+        ``(1 - gamma)`` of the move.
+    """
+    if std == 0.0:
+        return frames
+    if not std > 0.0:
+        raise ValueError(f"wall noise std must be >= 0, got {std!r}")
+    if not 0.0 <= gamma <= 1.0:
+        raise ValueError(f"wall noise gamma must be in [0, 1], got {gamma!r}")
+    signed, normal = local_wall_plane(frames[current], node_type, mask)
+    k_pick, k_size = jax.random.split(key)
+    n = signed.shape[0]
+    chosen = (clot_mask(node_type, mask) & (signed > -std) & jnp.any(normal != 0.0, axis=-1)
+              & jax.random.bernoulli(k_pick, 0.5, (n,)))
+    depth = std * jnp.abs(jax.random.normal(k_size, (n,), frames.dtype))
+    move = jnp.where(chosen[:, None], (jnp.maximum(-signed, 0.0) + depth)[:, None] * normal, 0.0)
+    return frames.at[:current + 1].add(move).at[current + 1:].add((1.0 - gamma) * move)

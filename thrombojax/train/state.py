@@ -93,7 +93,8 @@ class TrainedModel:
         return make_step(self.model, self.run.train.frame,
                          float(self.config.get("wall_cutoff", 0.0)),
                          history=self.run.train.history,
-                         stop_history_gradient=self.run.train.stop_history_gradient)
+                         stop_history_gradient=self.run.train.stop_history_gradient,
+                         wall_signed=self.run.train.wall_signed)
 
 
 def _manager(directory: pathlib.Path, *, read_only: bool = False) -> ocp.CheckpointManager:

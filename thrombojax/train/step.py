@@ -46,7 +46,7 @@ from thrombojax.models.registry import Surrogate
 from thrombojax.simulator.flat import FlatStep, flat_batch_ok
 from thrombojax.simulator.step import LearnedStep, make_step
 from thrombojax.train.loss import flat_window_loss_terms, window_loss_terms
-from thrombojax.train.noise import add_training_noise
+from thrombojax.train.noise import add_training_noise, add_wall_noise
 from thrombojax.train.state import TrainState
 from thrombojax.types import TargetStats
 
@@ -103,6 +103,7 @@ def batch_loss(
     noise_gamma: float = 0.1,
     noise_walk: bool = False,
     noise_shared: float = 0.0,
+    wall_noise: float = 0.0,
     k: int = 1,
     pushforward: int = 0,
     flat_batch: bool = False,
@@ -118,6 +119,9 @@ def batch_loss(
         noise_std, noise_gamma, noise_walk, noise_shared: training noise
             (:mod:`thrombojax.train.noise`; ``noise_walk``: the random walk over a history of
             frames; ``noise_shared``: the share of its variance common to all clot nodes).
+        wall_noise: scale (scaled coordinates) of the wall noise: clot nodes near the wall
+            moved through it in s_t, targets unchanged (:func:`thrombojax.train.noise.
+            add_wall_noise`; 0: off).
         k: steps of the unrolled loss (1: the single-step loss).
         pushforward: steps applied first without gradients (push-forward training).
         flat_batch: run the model once on the batch as one flat graph
@@ -132,24 +136,24 @@ def batch_loss(
     size = batch.mask.shape[0]
     keys = jax.random.split(rng, size) if rng is not None else None
 
+    corrupt = functools.partial(_corrupt, current=step.history, noise_std=noise_std,
+                                noise_gamma=noise_gamma, noise_walk=noise_walk,
+                                noise_shared=noise_shared, wall_noise=wall_noise)
+
     def one(frames, node_type, mask, key):
         model_key = None
         if key is not None:
             noise_key, model_key = jax.random.split(key)
-            if train and noise_std > 0:
-                frames = add_training_noise(
-                    noise_key, frames, node_type, mask, std=noise_std, gamma=noise_gamma,
-                    current=step.history, walk=noise_walk, shared=noise_shared,
-                )
+            if train:
+                frames = corrupt(noise_key, frames, node_type, mask)
         return window_loss_terms(
             step, params, stats, frames, node_type, mask, k=k, pushforward=pushforward,
             train=train, rng=model_key,
         )
 
     if flat_batch and flat_batch_ok(step):
-        terms = _flat_terms(step, params, stats, batch, keys, train=train, noise_std=noise_std,
-                            noise_gamma=noise_gamma, noise_shared=noise_shared, k=k,
-                            pushforward=pushforward)
+        terms = _flat_terms(step, params, stats, batch, keys, train=train, corrupt=corrupt,
+                            k=k, pushforward=pushforward)
     elif keys is None:
         terms = jax.vmap(lambda f, t, m: one(f, t, m, None))(
             batch.frames, batch.node_type, batch.mask
@@ -163,8 +167,22 @@ def batch_loss(
     return loss, metrics
 
 
-def _flat_terms(step, params, stats, batch, keys, *, train, noise_std, noise_gamma,
-                noise_shared, k, pushforward):
+def _corrupt(key, frames, node_type, mask, *, current, noise_std, noise_gamma, noise_walk,
+             noise_shared, wall_noise):
+    """One training window with its input noise (:mod:`thrombojax.train.noise`): the Gaussian
+    or random-walk noise from ``key``, then the wall noise from ``fold_in(key, 1)`` (so turning
+    the wall noise on leaves the Gaussian draws of a seed unchanged)."""
+    if noise_std > 0:
+        frames = add_training_noise(key, frames, node_type, mask, std=noise_std,
+                                    gamma=noise_gamma, current=current, walk=noise_walk,
+                                    shared=noise_shared)
+    if wall_noise > 0:
+        frames = add_wall_noise(jax.random.fold_in(key, 1), frames, node_type, mask,
+                                std=wall_noise, current=current)
+    return frames
+
+
+def _flat_terms(step, params, stats, batch, keys, *, train, corrupt, k, pushforward):
     """The per-window loss terms with the model run once on the flat batch graph.
 
     Each sample's noise key is the one the vmapped form draws (the first half of its split key),
@@ -175,10 +193,8 @@ def _flat_terms(step, params, stats, batch, keys, *, train, noise_std, noise_gam
     if keys is not None:
         pairs = jax.vmap(jax.random.split)(keys)  # [B, 2] keys: (noise, model) per sample
         model_key = pairs[0, 1]
-        if train and noise_std > 0:
-            frames = jax.vmap(functools.partial(add_training_noise, std=noise_std,
-                                                gamma=noise_gamma, shared=noise_shared))(
-                pairs[:, 0], frames, batch.node_type, batch.mask)
+        if train:
+            frames = jax.vmap(corrupt)(pairs[:, 0], frames, batch.node_type, batch.mask)
     return flat_window_loss_terms(FlatStep(step), params, stats, frames, batch.node_type,
                                   batch.mask, k=k, pushforward=pushforward, train=train,
                                   rng=model_key)
@@ -193,6 +209,7 @@ def make_train_step(
     noise_gamma: float = 0.1,
     noise_walk: bool = False,
     noise_shared: float = 0.0,
+    wall_noise: float = 0.0,
     k: int = 1,
     pushforward: int = 0,
     donate: bool = True,
@@ -204,7 +221,8 @@ def make_train_step(
         model: the surrogate (static).
         tx: the optimiser.
         stats: target statistics (closed over, constants of the compiled step).
-        noise_std, noise_gamma, noise_walk, noise_shared: training noise (0: off).
+        noise_std, noise_gamma, noise_walk, noise_shared, wall_noise: training noise (0: off;
+            :func:`batch_loss`).
         k: steps of the unrolled loss (1: single step).
         pushforward: steps applied first without gradients (push-forward training).
         donate: donate the old state's buffers to the new one.
@@ -220,7 +238,7 @@ def make_train_step(
             return batch_loss(
                 learned, params, stats, batch, rng, train=True,
                 noise_std=noise_std, noise_gamma=noise_gamma, noise_walk=noise_walk,
-                noise_shared=noise_shared, k=k,
+                noise_shared=noise_shared, wall_noise=wall_noise, k=k,
                 pushforward=pushforward,
                 flat_batch=flat_batch,
             )
