@@ -226,20 +226,13 @@ def test_cli_trains_a_history_step_and_every_consumer_reads_it(tmp_path):
     run through it."""
     import json
 
-    from dataset_factory import accelerating_sims
+    from dataset_factory import train_tiny_cli
 
     from thrombojax.cli import main
     from thrombojax.eval.report import rollout_run
-    from thrombojax.io.hdf5 import write_dataset
     from thrombojax.train.state import load_trained
 
-    data = write_dataset(tmp_path / "acc.h5", accelerating_sims(n_sims=4, n_nodes=60,
-                                                                 n_frames=8),
-                         name="acc", source="test")
-    run = tmp_path / "run"
-    assert main(["train", "--dataset", str(data), "--model", "mgn", "--out", str(run),
-                 "--tiny", "--epochs", "1", "--batch-size", "2", "--n-val", "1", "--n-test",
-                 "1", "--warmup-epochs", "0.5", "--history", "2", "--quiet"]) == 0
+    data, run = train_tiny_cli(tmp_path, "--history", "2")
     loaded = load_trained(run)
     assert loaded.run.train.history == 2 and loaded.step.history == 2
     assert main(["evaluate", "--run", str(run), "--dataset", str(data), "--out",

@@ -156,21 +156,12 @@ def test_cli_trains_with_the_default_recipe_and_reloads_the_step(tmp_path):
     """`thrombojax train` without --config uses the history recipe (options above it); the
     run records the frame and the wall cutoff; the loaded model steps as it trained; a
     rollout runs through it."""
-    from dataset_factory import accelerating_sims
+    from dataset_factory import train_tiny_cli
 
-    from thrombojax.cli import main
     from thrombojax.eval.report import rollout_run
-    from thrombojax.io.hdf5 import write_dataset
     from thrombojax.train.state import load_trained
 
-    data = write_dataset(tmp_path / "acc.h5", accelerating_sims(n_sims=4, n_nodes=80,
-                                                                 n_frames=8),
-                         name="acc", source="test")
-    run = tmp_path / "run"
-    assert main(["train", "--dataset", str(data), "--model", "mgn", "--out", str(run),
-                 "--tiny", "--epochs", "1", "--batch-size", "2", "--n-val", "1", "--n-test",
-                 "1", "--warmup-epochs", "0.5", "--wall-features", "2", "--frame", "vessel",
-                 "--quiet"]) == 0
+    data, run = train_tiny_cli(tmp_path, "--wall-features", "2", "--frame", "vessel", n_nodes=80)
     loaded = load_trained(run)
     cfg = loaded.run.train
     assert (cfg.frame, cfg.history, cfg.noise_walk, cfg.rollout_steps) == ("vessel", 2, True, 1)

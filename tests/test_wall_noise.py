@@ -218,21 +218,13 @@ def test_cli_trains_with_wall_noise_and_signed_features_and_rollouts_read_them(t
     loaded step computes the signed features, and a rollout runs through it."""
     import json
 
-    from dataset_factory import accelerating_sims
+    from dataset_factory import train_tiny_cli
 
-    from thrombojax.cli import main
     from thrombojax.eval.report import rollout_run
-    from thrombojax.io.hdf5 import write_dataset
     from thrombojax.train.state import load_trained
 
-    data = write_dataset(tmp_path / "acc.h5", accelerating_sims(n_sims=4, n_nodes=60,
-                                                                 n_frames=8),
-                         name="acc", source="test")
-    run = tmp_path / "run"
-    assert main(["train", "--dataset", str(data), "--model", "mgn", "--out", str(run),
-                 "--tiny", "--epochs", "1", "--batch-size", "2", "--n-val", "1", "--n-test",
-                 "1", "--warmup-epochs", "0.5", "--wall-noise", "0.1", "--wall-features",
-                 "0.5", "--wall-signed", "--quiet"]) == 0
+    data, run = train_tiny_cli(tmp_path, "--wall-noise", "0.1", "--wall-features", "0.5",
+                               "--wall-signed")
     loaded = load_trained(run)
     assert loaded.run.train.wall_noise == 0.1 and loaded.run.train.wall_signed
     assert loaded.step.wall_signed and loaded.step.wall_cutoff > 0
