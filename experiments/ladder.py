@@ -29,12 +29,13 @@ random-walk rung's model with the guards off (``walk_alone``), and the random-wa
 with wall noise (``walk_wallnoise``, clot nodes moved through the wall in the input frames, the
 targets by half as much, ``thrombojax.train.noise.add_wall_noise``), rolled out alone and with
 the guards (``wallnoise_guards``), and it with signed wall features (the signed distance to the
-wall and its normal), alone and with the guards (``wallnoise_signed``, ``signed_guards``), the
-signed features without the wall noise (``signed_alone``) and with twice the wall noise
-(``wallnoise2_signed``), alone. Every rung trains the same small MeshGraphNet (``--size
-study``: the study's, for an accelerator) for the same wall-clock budget (the epoch count is
-calibrated on this machine by timing one epoch), or for ``--epochs`` epochs, then is measured
-on held-out simulations (the split is by name: the last rotation is outside the training range):
+wall and its normal), alone and with the guards (``wallnoise_signed``, ``signed_guards``), a
+second seed of it and the two as an ensemble, alone (``signed_seeds``), the signed features
+without the wall noise (``signed_alone``) and with twice the wall noise (``wallnoise2_signed``),
+alone. Every rung trains the same small MeshGraphNet (``--size study``: the study's, for an
+accelerator) for the same wall-clock budget (the epoch count is calibrated on this machine by
+timing one epoch), or for ``--epochs`` epochs, then is measured on held-out simulations (the
+split is by name: the last rotation is outside the training range):
 
 - single-step MSE over all windows and over the rollout phase (frames >= the dataset's
   ``skip_frames``), as a ratio to constant velocity (CV);
@@ -108,6 +109,8 @@ ROTATION = {**NOISE, "pushforward_steps": 1, "rollout_steps": 3, "curriculum_epo
 # ``noise_walk``: the `history` recipe, the default of `thrombojax train`)
 HISTORY = {**NOISE, "max_rotation": np.pi, "history": 2}
 WALK = {**HISTORY, "noise_walk": True}  # the `history` recipe (rung `history_walk`)
+# it with wall noise 0.1 r and signed wall features cut off at 0.5 r (rung `wallnoise_signed`)
+SIGNED = {**WALK, "wall_noise": 0.1, "wall_features": 0.5, "wall_signed": True}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -162,14 +165,13 @@ RUNGS: tuple[Rung, ...] = (
     # wall noise with signed wall features (the signed distance to the wall and its normal,
     # cut off at 0.5 r: what tells a node that crossed the wall from one inside), alone and
     # with the guards
-    Rung("wallnoise_signed", {**WALK, "wall_noise": 0.1, "wall_features": 0.5,
-                              "wall_signed": True}),
-    Rung("signed_guards", {**WALK, "wall_noise": 0.1, "wall_features": 0.5, "wall_signed": True},
-         guards=True, reuse="wallnoise_signed"),
+    Rung("wallnoise_signed", SIGNED),
+    Rung("signed_guards", SIGNED, guards=True, reuse="wallnoise_signed"),
+    # its seed spread: seeds 0 and 1 alone, and the two as an ensemble (guards off)
+    Rung("signed_seeds", SIGNED, reuse="wallnoise_signed", members=2),
     # the control (signed features without the wall noise) and twice the wall noise, alone
     Rung("signed_alone", {**WALK, "wall_features": 0.5, "wall_signed": True}),
-    Rung("wallnoise2_signed", {**WALK, "wall_noise": 0.2, "wall_features": 0.5,
-                               "wall_signed": True}),
+    Rung("wallnoise2_signed", {**SIGNED, "wall_noise": 0.2}),
 )
 
 
