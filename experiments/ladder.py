@@ -158,7 +158,7 @@ RUNGS: tuple[Rung, ...] = (
     # the default recipe with the distance and direction to the nearest vessel node (1.5 r)
     Rung("walk_wall", {**WALK, "wall_features": 1.5}, guards=True),
     # the models alone (guards off): the default recipe, and it with wall noise (clot nodes near
-    # the wall moved through it, targets kept: the model learns to come back; 0.1 r)
+    # the wall moved through it, the targets by half: the model learns to come back; 0.1 r)
     Rung("walk_alone", WALK, reuse="history_walk"),
     Rung("walk_wallnoise", {**WALK, "wall_noise": 0.1}),
     Rung("wallnoise_guards", {**WALK, "wall_noise": 0.1}, guards=True, reuse="walk_wallnoise"),

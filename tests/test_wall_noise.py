@@ -1,9 +1,9 @@
-"""Wall noise: clot nodes near the wall moved through it, the targets kept.
+"""Wall noise: clot nodes near the wall moved through it, the targets by half as much.
 
 A rollout leaves the vessel through states the data never shows; the wall noise
-(:func:`thrombojax.train.noise.add_wall_noise`) shows them, with the true next frame as the
-target, so the model learns to bring a node that crossed the wall back. The wall comes from the
-frame alone (:func:`thrombojax.graph.wall_nodes.local_wall_plane`).
+(:func:`thrombojax.train.noise.add_wall_noise`) shows them, with the next frame moved by only
+half the crossing, so the model learns to bring a node that crossed the wall back. The wall
+comes from the frame alone (:func:`thrombojax.graph.wall_nodes.local_wall_plane`).
 """
 
 from __future__ import annotations

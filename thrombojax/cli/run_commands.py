@@ -64,8 +64,9 @@ def _add_train(sub) -> None:
                    "clot's recent motion can be wrong, as in a rollout (default 0)")
     p.add_argument("--wall-noise", type=NN_FLOAT, help="wall noise, in vessel radii: clot nodes "
                    "within this distance of the wall are moved through it (half of them, to a "
-                   "depth of this times |N(0,1)|) while the targets stay, so the model learns to "
-                   "bring a node that crossed the wall back (default 0: off)")
+                   "depth of this times |N(0,1)|) in every input frame and by half as much in the "
+                   "targets, so the model learns to bring a node that crossed the wall back; "
+                   "use with --wall-features C --wall-signed (default 0: off)")
     p.add_argument("--seed", type=NN_INT, help="seed of initialisation, data order, augmentations")
     p.add_argument("--skip-frames", type=NN_INT, help="first frames never used as frame t of a "
                    "window (default 0: every window)")

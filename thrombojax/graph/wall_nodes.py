@@ -144,7 +144,8 @@ def local_wall_plane(
     d2 = jnp.sum((x[:, None, :] - x[None, :, :]) ** 2, axis=-1)
     ranked = jnp.where(vessel[None, :], -d2, -jnp.inf)
     _, patch = jax.lax.top_k(ranked, k_normal)  # [N, k_normal]: every node's nearest vessel nodes
-    dev = x[patch] - x[patch].mean(axis=1, keepdims=True)
+    pts = x[patch]
+    dev = pts - pts.mean(axis=1, keepdims=True)
     _, vecs = jnp.linalg.eigh(jnp.einsum("nki,nkj->nij", dev, dev))
     normals = vecs[:, :, 0]  # least spread: the normal of the node's own patch (vessel nodes)
     clot_centre = jnp.sum(jnp.where(clot[:, None], x, 0.0), axis=0) / jnp.maximum(clot.sum(), 1)

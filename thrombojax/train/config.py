@@ -57,9 +57,9 @@ class TrainConfig:
         noise_shared: share of the noise variance common to every clot node of a window, in
             [0, 1] (0: independent per node; :mod:`thrombojax.train.noise`).
         wall_noise: wall noise, in vessel radii: clot nodes within this distance of the wall
-            are moved through it (half of them, to a depth of this times ``|N(0, 1)|``) in s_t
-            while the targets stay, so the model learns to bring a node that crossed the wall
-            back (0: off; :func:`thrombojax.train.noise.add_wall_noise`).
+            are moved through it (half of them, to a depth of this times ``|N(0, 1)|``) in every
+            input frame and by half as much in the targets, so the model learns to bring a node
+            that crossed the wall back (0: off; :func:`thrombojax.train.noise.add_wall_noise`).
         seed: initialisation, data order, augmentations.
         split_seed: which simulations are validation / test.
         n_val, n_test: simulations held out for validation / test.

@@ -141,8 +141,8 @@ def add_wall_noise(
     signed, normal = local_wall_plane(frames[current], node_type, mask)
     k_pick, k_size = jax.random.split(key)
     n = signed.shape[0]
-    chosen = (clot_mask(node_type, mask) & (signed > -std) & jnp.any(normal != 0.0, axis=-1)
-              & jax.random.bernoulli(k_pick, 0.5, (n,)))
+    # without a wall the normal is zero and nothing moves
+    chosen = clot_mask(node_type, mask) & (signed > -std) & jax.random.bernoulli(k_pick, 0.5, (n,))
     depth = std * jnp.abs(jax.random.normal(k_size, (n,), frames.dtype))
     move = jnp.where(chosen[:, None], (jnp.maximum(-signed, 0.0) + depth)[:, None] * normal, 0.0)
     return frames.at[:current + 1].add(move).at[current + 1:].add((1.0 - gamma) * move)
