@@ -32,16 +32,26 @@ the guards (``wallnoise_guards``), and it with signed wall features (the signed 
 wall and its normal), alone and with the guards (``wallnoise_signed``, ``signed_guards``), a
 second seed of it and the two as an ensemble, alone (``signed_seeds``), the signed features
 without the wall noise (``signed_alone``) and with twice the wall noise (``wallnoise2_signed``),
-alone. Every rung trains the same small MeshGraphNet (``--size study``: the study's, for an
-accelerator) for the same wall-clock budget (the epoch count is calibrated on this machine by
-timing one epoch), or for ``--epochs`` epochs, then is measured on held-out simulations (the
-split is by name: the last rotation is outside the training range):
+alone; and it with history noise (``history_noise``: the clot shifted in the frames before
+s_{t-1}, so the model does not carry the history's clot-wide acceleration over), alone
+(``signed_histnoise``), its seeds (``histnoise_seeds``), with the guards
+(``histnoise_guards``), and it with half of the noise's variance common to the clot, alone
+(``histnoise_shared``, ``histshared_seeds``). Every rung trains the same small MeshGraphNet
+(``--size study``: the study's, for an accelerator) for the same wall-clock budget (the epoch
+count is calibrated on this machine by timing one epoch), or for ``--epochs`` epochs, then is
+measured on held-out simulations (the split is by name: the last rotation is outside the
+training range):
 
 - single-step MSE over all windows and over the rollout phase (frames >= the dataset's
   ``skip_frames``), as a ratio to constant velocity (CV);
 - a rollout from ``skip_frames`` to the last frame: MSE@10, MSE@full (in vessel radii squared
   and as a ratio to CV), the final clot-centroid error (radii), the largest share of clot nodes
-  outside the vessel (``thrombojax.eval.metrics``), and the guards' largest correction.
+  outside the vessel (``thrombojax.eval.metrics``), and the guards' largest correction; each
+  rung's ``result.json`` also keeps, per simulation and step, the MSE (model and CV), the share
+  of clot nodes outside, the centroid error and the centroid's speed (model and truth, radii
+  per frame), and for a single model with a history its history gain
+  (``thrombojax.eval.drift``: the share of a change of the history's acceleration it carries
+  over, mean over the rollout's frames).
 
 Resumable: a rung whose ``result.json`` exists is skipped; a rung whose training was killed
 resumes from its last checkpoint. Writes ``table.md``, ``ladder.json`` and
@@ -64,6 +74,7 @@ import numpy as np
 from thrombojax import study
 from thrombojax.data.augment import subsample_indices
 from thrombojax.data.radius import vessel_radius
+from thrombojax.eval.drift import centroid_speed, history_gain
 from thrombojax.eval.metrics import (
     centroid_error,
     fit_vessel_wall,
@@ -111,6 +122,8 @@ HISTORY = {**NOISE, "max_rotation": np.pi, "history": 2}
 WALK = {**HISTORY, "noise_walk": True}  # the `history` recipe (rung `history_walk`)
 # it with wall noise 0.1 r and signed wall features cut off at 0.5 r (rung `wallnoise_signed`)
 SIGNED = {**WALK, "wall_noise": 0.1, "wall_features": 0.5, "wall_signed": True}
+# it with history noise 0.02 r (the clot-wide history acceleration not carried over)
+HISTNOISE = {**SIGNED, "history_noise": 0.02}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -172,6 +185,17 @@ RUNGS: tuple[Rung, ...] = (
     # the control (signed features without the wall noise) and twice the wall noise, alone
     Rung("signed_alone", {**WALK, "wall_features": 0.5, "wall_signed": True}),
     Rung("wallnoise2_signed", {**SIGNED, "wall_noise": 0.2}),
+    # the rollout's speed-up: the same with history noise (the clot shifted in the frames
+    # before s_{t-1}, the target unchanged: the history's clot-wide acceleration is not
+    # carried over), alone, seeds 0 and 1 (and the two as an ensemble), and with the guards;
+    # and it with half of the random-walk noise's variance common to the clot (a clot-wide
+    # velocity error the target takes back), alone, seeds 0 and 1
+    Rung("signed_histnoise", HISTNOISE),
+    Rung("histnoise_seeds", HISTNOISE, reuse="signed_histnoise", members=2),
+    Rung("histnoise_guards", HISTNOISE, guards=True, reuse="signed_histnoise"),
+    Rung("histnoise_shared", {**HISTNOISE, "noise_shared": 0.5}),
+    Rung("histshared_seeds", {**HISTNOISE, "noise_shared": 0.5}, reuse="histnoise_shared",
+         members=2),
 )
 
 
@@ -273,19 +297,29 @@ def _evaluate(runs: list[pathlib.Path], data: str, guards: bool,
         clot = clot_mask(nt)
         wall = fit_vessel_wall(full[0], full_nt, wall_cells=ds[name].wall_cells)
         mse, mse_cv = mse_per_step(pred, true, clot) / r**2, mse_per_step(base, true, clot) / r**2
+        outside, centroid = fraction_outside(wall, pred, clot), centroid_error(pred, true, clot) / r
+        if len(members) == 1 and step.history >= 2:  # thrombojax.eval.drift
+            extra["history_gain"] = float(history_gain(
+                step, trained.params, trained.stats, pos, nt, np.arange(skip, pos.shape[0] - 1),
+                delta=0.01 * r).mean())
         per_sim[name] = {
             "mse1_all": float(m1.mean()) / r**2, "mse1_all_cv": float(c1.mean()) / r**2,
             "mse1_phase": float(m1[phase].mean()) / r**2,
             "mse1_phase_cv": float(c1[phase].mean()) / r**2,
             "mse10": float(mse[:10].mean()), "mse10_cv": float(mse_cv[:10].mean()),
             "mse_full": float(mse.mean()), "mse_full_cv": float(mse_cv.mean()),
-            "final_centroid_r": float(centroid_error(pred, true, clot)[-1]) / r,
+            "final_centroid_r": float(centroid[-1]),
             "final_centroid_cv_r": float(centroid_error(base, true, clot)[-1]) / r,
-            "max_outside": float(fraction_outside(wall, pred, clot).max()),
+            "max_outside": float(outside.max()),
             "max_outside_cv": float(fraction_outside(wall, base, clot).max()),
             "max_correction_r": max((float(np.asarray(c).max()) for c in corr.values()),
                                     default=0.0) / r,
-            "mse_per_step": mse.tolist(), "mse_per_step_cv": mse_cv.tolist(), **extra,
+            "mse_per_step": mse.tolist(), "mse_per_step_cv": mse_cv.tolist(),
+            "outside_per_step": outside.tolist(), "centroid_per_step_r": centroid.tolist(),
+            "speed_per_step_r": (centroid_speed(np.concatenate([pos[skip:skip + 1], pred]), clot)
+                                 / r).tolist(),
+            "speed_true_per_step_r": (centroid_speed(pos[skip:], clot) / r).tolist(),
+            **extra,
         }
     keys = [k for k, v in next(iter(per_sim.values())).items()
             if not k.startswith("mse_per_step") and isinstance(v, float)]

@@ -67,6 +67,11 @@ def _add_train(sub) -> None:
                    "depth of this times |N(0,1)|) in every input frame and by half as much in the "
                    "targets, so the model learns to bring a node that crossed the wall back; "
                    "use with --wall-features C --wall-signed (default 0: off)")
+    p.add_argument("--history-noise", type=NN_FLOAT, help="history noise, in vessel radii: "
+                   "with --history H >= 2, the whole clot is shifted by one N(0, this^2) vector "
+                   "in the frames before s_{t-1} (s_t, its velocity and the target unchanged), so "
+                   "the model does not carry a clot-wide acceleration over from its history, "
+                   "which in a rollout speeds the clot up step after step (default 0: off)")
     p.add_argument("--seed", type=NN_INT, help="seed of initialisation, data order, augmentations")
     p.add_argument("--skip-frames", type=NN_INT, help="first frames never used as frame t of a "
                    "window (default 0: every window)")
@@ -119,7 +124,8 @@ def _run_train(args) -> int:
              "nodes_per_sample", "bary_ratio", "noise_std", "seed", "skip_frames", "n_val",
              "n_test", "tiny", "rollout_steps", "noise_gamma", "pushforward_steps",
              "curriculum_epochs", "frame", "wall_features", "history", "noise_walk",
-             "stop_history_gradient", "noise_shared", "wall_noise", "wall_signed")
+             "stop_history_gradient", "noise_shared", "wall_noise", "wall_signed",
+             "history_noise")
     overrides = {k: getattr(args, k) for k in names if getattr(args, k) is not None}
     from thrombojax.train.recipes import DEFAULT_RECIPE, recipe
 

@@ -6,6 +6,8 @@ Modules: :mod:`~thrombojax.eval.metrics` (errors, centroid, containment),
 :mod:`~thrombojax.eval.physical` (errors in vessel radii, the conversion recorded),
 :mod:`~thrombojax.eval.truth_tables` (the markdown of ``evaluate.md`` and ``rollout.md``),
 :mod:`~thrombojax.eval.rollouts` (a rollout measured beside the truth and constant velocity),
+:mod:`~thrombojax.eval.drift` (a rollout's speed-up: the clot's speed per step, a step's
+history gain),
 :mod:`~thrombojax.eval.report` (``thrombojax rollout``: trajectories, ParaView files, plots),
 :mod:`~thrombojax.eval.plots` (matplotlib figures and animations),
 :mod:`~thrombojax.eval.bench` (rollout speed, ``thrombojax bench``) and

@@ -35,6 +35,7 @@ _RULES: dict[str, tuple[str, float, bool, bool]] = {
     "noise_gamma": ("float", 0.0, True, False),
     "noise_shared": ("float", 0.0, True, False),
     "wall_noise": ("float", 0.0, True, False),
+    "history_noise": ("float", 0.0, True, False),
     "seed": ("int", 0, True, False),
     "split_seed": ("int", 0, True, False),
     "n_val": ("int", 0, True, False),
@@ -83,7 +84,8 @@ def check_train_values(cfg: Any) -> None:
     Also: the memory ``bary_ratio`` asks for even on one window
     (:func:`thrombojax.train.memory.check_train_memory`; the training loop checks again with the
     dataset's sizes), ``tiny``, ``noise_walk``, ``stop_history_gradient`` and ``wall_signed``
-    booleans (``wall_signed`` only with ``wall_features``),
+    booleans (``wall_signed`` only with ``wall_features``), ``history_noise`` only with
+    ``history >= 2``,
     ``model_config`` an object; upper bounds in :data:`_HIGH`.
     """
     for name in _RULES:
@@ -100,5 +102,8 @@ def check_train_values(cfg: Any) -> None:
     if getattr(cfg, "wall_signed", False) and not getattr(cfg, "wall_features", 0.0) > 0:
         raise ConfigError("--wall-signed (wall_signed) needs --wall-features C > 0 (the cutoff "
                           "of the features it changes)")
+    if getattr(cfg, "history_noise", 0.0) > 0 and getattr(cfg, "history", 1) < 2:
+        raise ConfigError("--history-noise (history_noise) needs --history H >= 2 (it perturbs "
+                          "the history's accelerations; with one previous frame there are none)")
     if not isinstance(cfg.model_config, dict):
         raise ConfigError(f"model_config must be a JSON object, got {cfg.model_config!r}")

@@ -60,6 +60,10 @@ class TrainConfig:
             are moved through it (half of them, to a depth of this times ``|N(0, 1)|``) in every
             input frame and by half as much in the targets, so the model learns to bring a node
             that crossed the wall back (0: off; :func:`thrombojax.train.noise.add_wall_noise`).
+        history_noise: history noise, in vessel radii: the whole clot shifted by one
+            ``N(0, history_noise^2)`` vector in the frames before s_{t-1} (needs ``history``
+            >= 2), the target unchanged, so the model does not carry a clot-wide acceleration
+            over from its history (0: off; :func:`thrombojax.train.noise.add_history_noise`).
         seed: initialisation, data order, augmentations.
         split_seed: which simulations are validation / test.
         n_val, n_test: simulations held out for validation / test.
@@ -109,6 +113,7 @@ class TrainConfig:
     noise_walk: bool = False
     noise_shared: float = 0.0
     wall_noise: float = 0.0
+    history_noise: float = 0.0
     seed: int = 0
     split_seed: int = 0
     n_val: int = 2

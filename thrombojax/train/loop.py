@@ -215,7 +215,8 @@ def train(
     run_key, init_key = jax.random.split(jax.random.PRNGKey(cfg.seed))
     # radii -> scaled; the radius (possibly a geometric estimate) only when it is needed
     radius = (vessel_radius(ds) / float(scaling.scale)
-              if cfg.noise_std > 0 or cfg.wall_features > 0 or cfg.wall_noise > 0 else 0.0)
+              if cfg.noise_std > 0 or cfg.wall_features > 0 or cfg.wall_noise > 0
+              or cfg.history_noise > 0 else 0.0)
     wall_cutoff = cfg.wall_features * radius
     step_fn = make_step(model, cfg.frame, wall_cutoff, history=cfg.history,
                         stop_history_gradient=cfg.stop_history_gradient,
@@ -255,7 +256,8 @@ def train(
                                              noise_gamma=cfg.noise_gamma,
                                              noise_walk=cfg.noise_walk,
                                              noise_shared=cfg.noise_shared,
-                                             wall_noise=cfg.wall_noise * radius, k=k,
+                                             wall_noise=cfg.wall_noise * radius,
+                                             history_noise=cfg.history_noise * radius, k=k,
                                              pushforward=cfg.pushforward_steps)
         return train_steps[k]
 

@@ -27,6 +27,14 @@ the later frames keep ``1 - gamma`` of the move (default ``gamma = 1/2``): the m
 take a node that crossed the wall back toward it by half the crossing per step. Only nodes
 outside the wall are corrupted, so a clean node inside never looks like a corrupted one (no
 bias on clean inputs).
+
+History noise (:func:`add_history_noise`, a step with ``history >= 2``): the whole clot is
+shifted by one Gaussian vector in the frames before s_{t-1}; s_{t-1}, s_t and the target stay.
+The current velocity is exact, the history's accelerations are not, and the target does not
+follow them: the model learns not to carry a clot-wide acceleration over from its history. In a
+rollout the history is the model's own output, and a step that carries half of the last
+step's acceleration over (measured on the ladder's default models) amplifies every small bias
+into a steady speed-up of the clot.
 """
 
 from __future__ import annotations
@@ -37,7 +45,7 @@ import jax.numpy as jnp
 from thrombojax.graph.wall_nodes import local_wall_plane
 from thrombojax.types import clot_mask
 
-__all__ = ["add_training_noise", "add_wall_noise"]
+__all__ = ["add_training_noise", "add_wall_noise", "add_history_noise"]
 
 
 def add_training_noise(
@@ -146,3 +154,43 @@ def add_wall_noise(
     depth = std * jnp.abs(jax.random.normal(k_size, (n,), frames.dtype))
     move = jnp.where(chosen[:, None], (jnp.maximum(-signed, 0.0) + depth)[:, None] * normal, 0.0)
     return frames.at[:current + 1].add(move).at[current + 1:].add((1.0 - gamma) * move)
+
+
+def add_history_noise(
+    key: jax.Array,
+    frames: jax.Array,
+    node_type: jax.Array,
+    mask: jax.Array,
+    *,
+    std: float,
+    current: int,
+) -> jax.Array:
+    """Shift the whole clot by one random vector in the frames before s_{t-1} (module docstring).
+
+    s_{t-1}, s_t and the targets stay, so the current velocity is exact and only the history's
+    accelerations change (``a_{t-1}`` by the shift, ``a_{t-2}`` by minus it, ...): the model
+    learns not to carry a common acceleration over from the history by itself, which in a
+    rollout, where the history is the model's own output, feeds a drift of the clot's speed.
+
+    Args:
+        key: PRNG key.
+        frames: ``[W, n_nodes, 3]`` the window, scaled coordinates; ``frames[current]`` is s_t.
+        node_type: ``[n_nodes]`` NodeType values. mask: ``[n_nodes]`` real-node mask.
+        std: standard deviation of the shift per axis, scaled coordinates (0 returns
+            ``frames`` unchanged).
+        current: index of s_t in the window (the step's ``history``, >= 2: with one previous
+            frame there is no history acceleration to perturb).
+    Returns:
+        ``[W, n_nodes, 3]``: the clot nodes of frames ``0 .. current - 2`` moved by one common
+        ``N(0, std^2 I)`` vector; every other frame and node as given.
+    """
+    if std == 0.0:
+        return frames
+    if not std > 0.0:
+        raise ValueError(f"history noise std must be >= 0, got {std!r}")
+    if current < 2:
+        raise ValueError(f"history noise needs a history of at least 2 frames (the step's "
+                         f"accelerations), got {current!r}")
+    shift = std * jax.random.normal(key, (1, 3), frames.dtype)
+    move = jnp.where(clot_mask(node_type, mask)[:, None], shift, 0.0)
+    return frames.at[:current - 1].add(move)

@@ -46,7 +46,7 @@ from thrombojax.models.registry import Surrogate
 from thrombojax.simulator.flat import FlatStep, flat_batch_ok
 from thrombojax.simulator.step import LearnedStep, make_step
 from thrombojax.train.loss import flat_window_loss_terms, window_loss_terms
-from thrombojax.train.noise import add_training_noise, add_wall_noise
+from thrombojax.train.noise import add_history_noise, add_training_noise, add_wall_noise
 from thrombojax.train.state import TrainState
 from thrombojax.types import TargetStats
 
@@ -104,6 +104,7 @@ def batch_loss(
     noise_walk: bool = False,
     noise_shared: float = 0.0,
     wall_noise: float = 0.0,
+    history_noise: float = 0.0,
     k: int = 1,
     pushforward: int = 0,
     flat_batch: bool = False,
@@ -120,8 +121,10 @@ def batch_loss(
             (:mod:`thrombojax.train.noise`; ``noise_walk``: the random walk over a history of
             frames; ``noise_shared``: the share of its variance common to all clot nodes).
         wall_noise: scale (scaled coordinates) of the wall noise: clot nodes near the wall
-            moved through it in s_t, targets unchanged (:func:`thrombojax.train.noise.
-            add_wall_noise`; 0: off).
+            moved through it in every input frame, the targets by half as much
+            (:func:`thrombojax.train.noise.add_wall_noise`; 0: off).
+        history_noise: standard deviation (scaled coordinates) of the clot-wide shift of the
+            frames before s_{t-1} (:func:`thrombojax.train.noise.add_history_noise`; 0: off).
         k: steps of the unrolled loss (1: the single-step loss).
         pushforward: steps applied first without gradients (push-forward training).
         flat_batch: run the model once on the batch as one flat graph
@@ -138,7 +141,8 @@ def batch_loss(
 
     corrupt = functools.partial(_corrupt, current=step.history, noise_std=noise_std,
                                 noise_gamma=noise_gamma, noise_walk=noise_walk,
-                                noise_shared=noise_shared, wall_noise=wall_noise)
+                                noise_shared=noise_shared, wall_noise=wall_noise,
+                                history_noise=history_noise)
 
     def one(frames, node_type, mask, key):
         model_key = None
@@ -168,10 +172,11 @@ def batch_loss(
 
 
 def _corrupt(key, frames, node_type, mask, *, current, noise_std, noise_gamma, noise_walk,
-             noise_shared, wall_noise):
+             noise_shared, wall_noise, history_noise=0.0):
     """One training window with its input noise (:mod:`thrombojax.train.noise`): the Gaussian
-    or random-walk noise from ``key``, then the wall noise from ``fold_in(key, 1)`` (so turning
-    the wall noise on leaves the Gaussian draws of a seed unchanged)."""
+    or random-walk noise from ``key``, then the wall noise from ``fold_in(key, 1)`` and the
+    history noise from ``fold_in(key, 2)`` (so turning either on leaves the other draws of a
+    seed unchanged)."""
     if noise_std > 0:
         frames = add_training_noise(key, frames, node_type, mask, std=noise_std,
                                     gamma=noise_gamma, current=current, walk=noise_walk,
@@ -179,6 +184,9 @@ def _corrupt(key, frames, node_type, mask, *, current, noise_std, noise_gamma, n
     if wall_noise > 0:
         frames = add_wall_noise(jax.random.fold_in(key, 1), frames, node_type, mask,
                                 std=wall_noise, current=current)
+    if history_noise > 0:
+        frames = add_history_noise(jax.random.fold_in(key, 2), frames, node_type, mask,
+                                   std=history_noise, current=current)
     return frames
 
 
@@ -210,6 +218,7 @@ def make_train_step(
     noise_walk: bool = False,
     noise_shared: float = 0.0,
     wall_noise: float = 0.0,
+    history_noise: float = 0.0,
     k: int = 1,
     pushforward: int = 0,
     donate: bool = True,
@@ -221,7 +230,8 @@ def make_train_step(
         model: the surrogate (static).
         tx: the optimiser.
         stats: target statistics (closed over, constants of the compiled step).
-        noise_std, noise_gamma, noise_walk, noise_shared, wall_noise: training noise (0: off;
+        noise_std, noise_gamma, noise_walk, noise_shared, wall_noise, history_noise: training
+            noise (0: off;
             :func:`batch_loss`).
         k: steps of the unrolled loss (1: single step).
         pushforward: steps applied first without gradients (push-forward training).
@@ -238,7 +248,8 @@ def make_train_step(
             return batch_loss(
                 learned, params, stats, batch, rng, train=True,
                 noise_std=noise_std, noise_gamma=noise_gamma, noise_walk=noise_walk,
-                noise_shared=noise_shared, wall_noise=wall_noise, k=k,
+                noise_shared=noise_shared, wall_noise=wall_noise,
+                history_noise=history_noise, k=k,
                 pushforward=pushforward,
                 flat_batch=flat_batch,
             )

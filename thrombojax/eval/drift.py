@@ -1,0 +1,100 @@
+"""How a rollout drifts: the clot's speed per step and the history gain of a learned step.
+
+A rollout whose clot ends radii from the true one has usually not gone the wrong way but at the
+wrong speed: on the ladder's BendVessel models the true clot slides at a steady speed until it
+leaves the vessel, while the rollout speeds up a little every step. Two measures say so:
+
+- :func:`centroid_speed`: the distance the clot's centroid moves per frame, for a rollout and
+  for the truth side by side;
+- :func:`history_gain`: of a change of the clot-wide acceleration in a step's history (the
+  frames before s_{t-1} moved back along the motion, s_{t-1} and s_t as they are), the share
+  the step's predicted acceleration carries over. In a rollout the history is the step's own
+  output, so a gain ``g`` multiplies every small acceleration error by about ``1 / (1 - g)``,
+  and the speed, which nothing in the inputs pins (the terminal speed is not an input),
+  integrates it. The physics carries nothing over once the drive has ramped up (the
+  acceleration follows from the positions and velocity); the ladder's default models carry
+  about half over.
+
+Both are teacher-forced or post-hoc measures on host arrays; nothing here is compiled for a
+rollout.
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from thrombojax.errors import ConfigError
+from thrombojax.simulator.step import LearnedStep
+from thrombojax.types import TargetStats, clot_mask
+
+__all__ = ["centroid_speed", "history_gain"]
+
+
+def centroid_speed(trajectory: np.ndarray, clot_mask: np.ndarray) -> np.ndarray:
+    """Distance the clot centroid moves per frame, ``[T - 1]`` (units of ``trajectory``).
+
+    Args:
+        trajectory: ``[T, n_nodes, 3]`` frames (a rollout with the frame it started from first,
+            or the truth). clot_mask: ``[n_nodes]`` bool, the clot nodes.
+    """
+    sel = np.asarray(clot_mask, bool)
+    centre = np.asarray(trajectory, np.float64)[:, sel].mean(axis=1)
+    return np.linalg.norm(np.diff(centre, axis=0), axis=-1)
+
+
+def history_gain(
+    step: LearnedStep,
+    params: dict,
+    stats: TargetStats,
+    positions: np.ndarray,
+    node_type: np.ndarray,
+    frames: np.ndarray,
+    *,
+    delta: float,
+    mask: np.ndarray | None = None,
+) -> np.ndarray:
+    """Share of a change of the history's clot-wide acceleration a step carries over, per frame.
+
+    At each frame ``t``: the clot nodes of the frames before s_{t-1} are moved back by ``delta``
+    along the clot's motion (s_t - s_{t-1} of its centroid), which lowers the history's last
+    acceleration ``a_{t-1}`` by ``delta`` and leaves s_{t-1}, s_t and the velocity as they are;
+    the gain is how much the predicted centroid acceleration along the motion drops, over
+    ``delta``.
+
+    Args:
+        step: a learned step with ``history >= 2``. params, stats: its variables and statistics.
+        positions: ``[T, n_nodes, 3]`` a trajectory (scaled coordinates). node_type: ``[n_nodes]``.
+        frames: the frames ``t`` (each ``>= 1`` and ``< T``) to measure at.
+        delta: the change, scaled coordinates (> 0; small against the motion per frame).
+        mask: ``[n_nodes]`` real nodes (default: all).
+    Returns:
+        ``[len(frames)]`` gains (0: nothing carried over; 1: all of it).
+    Raises:
+        ConfigError: a step without history, a bad ``delta`` or a clot at rest at a frame.
+    """
+    if step.history < 2:
+        raise ConfigError(f"history gain: the step reads {step.history} previous frame(s); it "
+                          "has no history acceleration (needs history >= 2)")
+    if not delta > 0:
+        raise ConfigError(f"history gain: delta must be > 0, got {delta!r}")
+    positions = np.asarray(positions, np.float32)
+    node_type = np.asarray(node_type)
+    mask = np.ones(len(node_type), bool) if mask is None else np.asarray(mask, bool)
+    clot = np.asarray(clot_mask(node_type, mask), bool)
+    run = jax.jit(lambda xp, xc: step(params, stats, xp, xc, node_type, mask).positions)
+    gains = []
+    for t in np.asarray(frames, int):
+        cur, prev = positions[t], np.asarray(step.previous(positions, t), np.float32)
+        v = cur[clot].mean(axis=0) - prev[-1][clot].mean(axis=0)
+        speed = float(np.linalg.norm(v))
+        if speed == 0.0:
+            raise ConfigError(f"history gain: the clot does not move at frame {t}")
+        along = v / speed
+        moved = prev.copy()
+        moved[:-1, clot] -= delta * along
+        base = np.asarray(run(jnp.asarray(prev), jnp.asarray(cur)))[clot].mean(axis=0)
+        pert = np.asarray(run(jnp.asarray(moved), jnp.asarray(cur)))[clot].mean(axis=0)
+        gains.append(float((base - pert) @ along) / delta)
+    return np.asarray(gains)
