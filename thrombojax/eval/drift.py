@@ -12,8 +12,9 @@ leaves the vessel, while the rollout speeds up a little every step. Two measures
   output, so a gain ``g`` multiplies every small acceleration error by about ``1 / (1 - g)``,
   and the speed, which nothing in the inputs pins (the terminal speed is not an input),
   integrates it. The physics carries nothing over once the drive has ramped up (the
-  acceleration follows from the positions and velocity); the ladder's default models carry
-  about half over.
+  acceleration follows from the positions and velocity); the ladder's models of the default
+  recipe with wall noise and signed wall features carry about half over (0.47-0.48,
+  ``experiments/results/ladder_budget/bendvessel_histnoise/``).
 
 Both are teacher-forced or post-hoc measures on host arrays; nothing here is compiled for a
 rollout.

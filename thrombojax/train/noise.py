@@ -33,8 +33,8 @@ shifted by one Gaussian vector in the frames before s_{t-1}; s_{t-1}, s_t and th
 The current velocity is exact, the history's accelerations are not, and the target does not
 follow them: the model learns not to carry a clot-wide acceleration over from its history. In a
 rollout the history is the model's own output, and a step that carries half of the last
-step's acceleration over (measured on the ladder's default models) amplifies every small bias
-into a steady speed-up of the clot.
+step's acceleration over (measured on the ladder's wall-noise models: 0.47-0.48) amplifies
+every small bias into a steady speed-up of the clot.
 """
 
 from __future__ import annotations
