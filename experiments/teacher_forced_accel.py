@@ -18,25 +18,25 @@ import sys
 import numpy as np
 
 from thrombojax.data.radius import vessel_radius
-from thrombojax.eval.single_step import scaled_simulation
+from thrombojax.eval.single_step import batched_next, scaled_simulation
 from thrombojax.io.hdf5 import open_dataset
-from thrombojax.train.state import load_trained
+from thrombojax.train.state import TrainedModel, load_trained
 from thrombojax.types import clot_mask
 
 
-def accelerations(run: str, dataset: str, name: str) -> list[tuple[int, float, float]]:
-    """``(t, true, predicted)`` centroid accelerations along the motion, milli-radii / frame^2."""
-    trained = load_trained(run)
-    ds = open_dataset(dataset)
-    r = vessel_radius(ds) / float(trained.scaling.scale)
+def accelerations(trained: TrainedModel, dataset, name: str) -> list[tuple[int, float, float]]:
+    """``(t, true, predicted)`` centroid accelerations along the motion, milli-radii / frame^2,
+    of simulation ``name`` of an open dataset (each frame one call of the compiled step)."""
+    r = vessel_radius(dataset) / float(trained.scaling.scale)
     step = trained.step
-    pos, nt = scaled_simulation(ds, name, trained.scaling)
+    step.require_dense("teacher-forced accelerations")
+    pos, nt = scaled_simulation(dataset, name, trained.scaling)
     clot, mask = clot_mask(nt), np.ones(len(nt), bool)
     c = pos[:, clot].mean(axis=1)
     rows = []
     for t in range(step.history, pos.shape[0] - 1):
-        nxt = np.asarray(step(trained.params, trained.stats, step.previous(pos, t), pos[t], nt,
-                              mask).positions)
+        nxt = np.asarray(batched_next(step, trained.params, trained.stats,
+                                      step.previous(pos, t)[None], pos[t][None], nt, mask))[0]
         along = (c[t] - c[t - 1]) / np.linalg.norm(c[t] - c[t - 1])
         true = (c[t + 1] - 2 * c[t] + c[t - 1]) @ along / r
         pred = (nxt[clot].mean(axis=0) - 2 * c[t] + c[t - 1]) @ along / r
@@ -51,8 +51,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--dataset", required=True, help="the dataset (.h5)")
     parser.add_argument("--sims", required=True, help="simulations (comma-separated)")
     args = parser.parse_args(argv)
+    trained, dataset = load_trained(args.run), open_dataset(args.dataset)
     for name in args.sims.split(","):
-        rows = accelerations(args.run, args.dataset, name)
+        rows = accelerations(trained, dataset, name)
         print(f"{name} (t: true / predicted, milli-r per frame^2)")
         print(" ".join(f"{t}:{a:+.0f}/{p:+.0f}" for t, a, p in rows))
     return 0

@@ -22,11 +22,11 @@ rollout.
 
 from __future__ import annotations
 
-import jax
 import jax.numpy as jnp
 import numpy as np
 
 from thrombojax.errors import ConfigError
+from thrombojax.eval.single_step import batched_next
 from thrombojax.simulator.step import LearnedStep
 from thrombojax.types import TargetStats, clot_mask
 
@@ -73,8 +73,10 @@ def history_gain(
     Returns:
         ``[len(frames)]`` gains (0: nothing carried over; 1: all of it).
     Raises:
-        ConfigError: a step without history, a bad ``delta`` or a clot at rest at a frame.
+        ConfigError: a step without history or with a cell grid, a bad ``delta`` or a clot at
+            rest at a frame.
     """
+    step.require_dense("history gain")
     if step.history < 2:
         raise ConfigError(f"history gain: the step reads {step.history} previous frame(s); it "
                           "has no history acceleration (needs history >= 2)")
@@ -84,7 +86,6 @@ def history_gain(
     node_type = np.asarray(node_type)
     mask = np.ones(len(node_type), bool) if mask is None else np.asarray(mask, bool)
     clot = np.asarray(clot_mask(node_type, mask), bool)
-    run = jax.jit(lambda xp, xc: step(params, stats, xp, xc, node_type, mask).positions)
     gains = []
     for t in np.asarray(frames, int):
         cur, prev = positions[t], np.asarray(step.previous(positions, t), np.float32)
@@ -95,7 +96,10 @@ def history_gain(
         along = v / speed
         moved = prev.copy()
         moved[:-1, clot] -= delta * along
-        base = np.asarray(run(jnp.asarray(prev), jnp.asarray(cur)))[clot].mean(axis=0)
-        pert = np.asarray(run(jnp.asarray(moved), jnp.asarray(cur)))[clot].mean(axis=0)
+        # the window as it is and with the history moved, in one call
+        nxt = np.asarray(batched_next(step, params, stats, jnp.asarray(np.stack([prev, moved])),
+                                      jnp.asarray(np.stack([cur, cur])), jnp.asarray(node_type),
+                                      jnp.asarray(mask)))
+        base, pert = nxt[:, clot].mean(axis=1)
         gains.append(float((base - pert) @ along) / delta)
     return np.asarray(gains)

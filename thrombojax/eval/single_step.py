@@ -53,6 +53,7 @@ __all__ = [
     "select_simulations",
     "scaled_simulation",
     "simulation_exit_frame",
+    "batched_next",
     "single_step_errors",
     "ensemble_single_step_errors",
     "single_step_by_phase",
@@ -150,7 +151,15 @@ def simulation_exit_frame(positions: np.ndarray, node_type: np.ndarray,
 
 
 @functools.partial(jax.jit, static_argnums=0)
-def _batched_next(step, params, stats, prev, cur, node_type, mask):
+def batched_next(step, params, stats, prev, cur, node_type, mask):
+    """Teacher-forced next positions of a batch of windows of one simulation, ``[B, N, 3]``.
+
+    One compilation per step and shapes (the step is static, the parameters an argument), so
+    repeated calls with new parameters or frames reuse it. ``prev``: ``[B, ...]`` each
+    window's ``x_prev`` (:meth:`~thrombojax.simulator.step.LearnedStep.previous`); ``cur``:
+    ``[B, N, 3]``; ``node_type``, ``mask``: ``[N]``. The grid overflow flag is not checked:
+    callers require a dense step (:meth:`~thrombojax.simulator.step.LearnedStep.require_dense`).
+    """
     def one(p, c):
         return step(params, stats, p, c, node_type, mask).positions
 
@@ -218,8 +227,8 @@ def ensemble_single_step_errors(
     for lo in range(0, times.size, batch_size):
         t = times[lo:lo + batch_size]
         t_pad = np.concatenate([t, np.full(batch_size - t.size, t[-1])])
-        preds = [np.asarray(_batched_next(step, params, stats, step.previous(positions, t_pad),
-                                          positions[t_pad], jnp.asarray(node_type), mask))
+        preds = [np.asarray(batched_next(step, params, stats, step.previous(positions, t_pad),
+                                         positions[t_pad], jnp.asarray(node_type), mask))
                  for params in params_list]
         nxt = preds[0] if len(preds) == 1 else np.mean(preds, axis=0)
         errors.append(mse_per_step(nxt[:t.size], positions[t + 1], clot))

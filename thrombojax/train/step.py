@@ -172,7 +172,7 @@ def batch_loss(
 
 
 def _corrupt(key, frames, node_type, mask, *, current, noise_std, noise_gamma, noise_walk,
-             noise_shared, wall_noise, history_noise=0.0):
+             noise_shared, wall_noise, history_noise):
     """One training window with its input noise (:mod:`thrombojax.train.noise`): the Gaussian
     or random-walk noise from ``key``, then the wall noise from ``fold_in(key, 1)`` and the
     history noise from ``fold_in(key, 2)`` (so turning either on leaves the other draws of a
@@ -231,8 +231,7 @@ def make_train_step(
         tx: the optimiser.
         stats: target statistics (closed over, constants of the compiled step).
         noise_std, noise_gamma, noise_walk, noise_shared, wall_noise, history_noise: training
-            noise (0: off;
-            :func:`batch_loss`).
+            noise (0: off; :func:`batch_loss`).
         k: steps of the unrolled loss (1: single step).
         pushforward: steps applied first without gradients (push-forward training).
         donate: donate the old state's buffers to the new one.
