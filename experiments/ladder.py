@@ -36,7 +36,15 @@ alone; and it with history noise (``history_noise``: the clot shifted in the fra
 s_{t-1}, so the model does not carry the history's clot-wide acceleration over), alone
 (``signed_histnoise``), its seeds (``histnoise_seeds``), with the guards
 (``histnoise_guards``), and it with half of the noise's variance common to the clot, alone
-(``histnoise_shared``, ``histshared_seeds``). Every rung trains the same small MeshGraphNet
+(``histnoise_shared``, ``histshared_seeds``); and it with speed noise (``speed_noise``: the
+clot's input motion scaled by one random factor, the target unchanged, so the model is shown a
+clot off its speed; ``thrombojax.train.noise.add_speed_noise``) of 3 % and 10 %, alone
+(``speed03``, ``speed10``), two seeds of the first (``speed03_seeds``) and with the guards
+(``speed03_guards``, ``speed10_guards``); and it with time scaling (``time_scale`` 1.5: each
+window's clot motion played up to 1.5 times faster or slower, so speeds beyond the data's are
+trained; ``thrombojax.train.noise.time_scale_window``), alone and guarded (``tscale``,
+``tscale_guards``). ``--transfer DATA`` also rolls every rung out on all simulations of another
+dataset (train on one, evaluate on the other). Every rung trains the same small MeshGraphNet
 (``--size study``: the study's, for an accelerator) for the same wall-clock budget (the epoch
 count is calibrated on this machine by timing one epoch), or for ``--epochs`` epochs, then is
 measured on held-out simulations (the split is by name: the last rotation is outside the
@@ -51,7 +59,8 @@ training range):
   of clot nodes outside, the centroid error and the centroid's speed (model and truth, radii
   per frame), and for a single model with a history its history gain
   (``thrombojax.eval.drift``: the share of a change of the history's acceleration it carries
-  over, mean over the rollout's frames).
+  over, mean over the rollout's frames) and for every single model its speed carry (the share
+  of a 5 % clot-wide speed error in its inputs that it keeps: 1 for constant velocity).
 
 Resumable: a rung whose ``result.json`` exists is skipped; a rung whose training was killed
 resumes from its last checkpoint. Writes ``table.md``, ``ladder.json`` and
@@ -74,7 +83,7 @@ import numpy as np
 from thrombojax import study
 from thrombojax.data.augment import subsample_indices
 from thrombojax.data.radius import vessel_radius
-from thrombojax.eval.drift import centroid_speed, history_gain
+from thrombojax.eval.drift import centroid_speed, history_gain, speed_carry
 from thrombojax.eval.metrics import (
     centroid_error,
     fit_vessel_wall,
@@ -124,6 +133,10 @@ WALK = {**HISTORY, "noise_walk": True}  # the `history` recipe (rung `history_wa
 SIGNED = {**WALK, "wall_noise": 0.1, "wall_features": 0.5, "wall_signed": True}
 # it with history noise 0.02 r (the clot-wide history acceleration not carried over)
 HISTNOISE = {**SIGNED, "history_noise": 0.02}
+# it with speed noise (the clot's input motion scaled by 1 + N(0, S^2), the target unchanged)
+SPEED03, SPEED10 = {**HISTNOISE, "speed_noise": 0.03}, {**HISTNOISE, "speed_noise": 0.1}
+# it with time scaling (each window played up to 1.5x faster or slower)
+TSCALE = {**HISTNOISE, "time_scale": 1.5}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -196,6 +209,18 @@ RUNGS: tuple[Rung, ...] = (
     Rung("histnoise_shared", {**HISTNOISE, "noise_shared": 0.5}),
     Rung("histshared_seeds", {**HISTNOISE, "noise_shared": 0.5}, reuse="histnoise_shared",
          members=2),
+    # the rollout's speed error kept step after step: the same with speed noise (the clot's
+    # input motion 1 + N(0, S^2) times the truth, the target unchanged: the model is shown a
+    # clot off its speed and taught to bring it back), S = 0.03 (seeds 0 and 1) and 0.1, alone
+    # and with the guards; and the history-noise recipe with time scaling (each window's clot
+    # motion played up to 1.5x faster or slower: speeds beyond the data's), alone and guarded
+    Rung("speed03", SPEED03),
+    Rung("speed03_seeds", SPEED03, reuse="speed03", members=2),
+    Rung("speed03_guards", SPEED03, guards=True, reuse="speed03"),
+    Rung("speed10", SPEED10),
+    Rung("speed10_guards", SPEED10, guards=True, reuse="speed10"),
+    Rung("tscale", TSCALE),
+    Rung("tscale_guards", TSCALE, guards=True, reuse="tscale"),
 )
 
 
@@ -256,7 +281,9 @@ def _member_runs(rung: Rung, out: pathlib.Path, data: str, split: dict,
 
 
 def _evaluate(runs: list[pathlib.Path], data: str, guards: bool,
-              n_nodes: int | None = None) -> dict:
+              n_nodes: int | None = None, names: list[str] | None = None) -> dict:
+    """Roll the runs (one model, or an ensemble) out on the simulations ``names`` of ``data``
+    (default: the first run's test split) and measure them against constant velocity."""
     members = [load_trained(run) for run in runs]
     trained = members[0]
     ds = open_dataset(data)
@@ -265,7 +292,7 @@ def _evaluate(runs: list[pathlib.Path], data: str, guards: bool,
     step, cv = trained.step, make_step(create_model("constant_velocity"))
     params = [m.params for m in members]
     per_sim = {}
-    for name in trained.split.test:
+    for name in trained.split.test if names is None else names:
         full, full_nt = scaled_simulation(ds, name, trained.scaling)
         idx = subsample_indices(0, full_nt, n_nodes or len(full_nt))  # the study's 2,048
         pos, nt = full[:, idx], full_nt[idx]
@@ -302,6 +329,10 @@ def _evaluate(runs: list[pathlib.Path], data: str, guards: bool,
             extra["history_gain"] = float(history_gain(
                 step, trained.params, trained.stats, pos, nt, np.arange(skip, pos.shape[0] - 1),
                 delta=0.01 * r).mean())
+        if len(members) == 1:
+            extra["speed_carry"] = float(speed_carry(
+                step, trained.params, trained.stats, pos, nt, np.arange(skip, pos.shape[0] - 1),
+                delta=0.05).mean())
         per_sim[name] = {
             "mse1_all": float(m1.mean()) / r**2, "mse1_all_cv": float(c1.mean()) / r**2,
             "mse1_phase": float(m1[phase].mean()) / r**2,
@@ -366,6 +397,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--size", choices=("small", "study"), default="small",
                         help="'small' (default): MeshGraphNet hidden 32, 5 blocks, batch 4, the "
                         "CPU ladder; 'study': the study's MeshGraphNet and batch 8 (accelerator)")
+    parser.add_argument("--transfer", default=None, metavar="DATA",
+                        help="also roll every rung's models out on every simulation of this "
+                        "other dataset (train on --dataset, evaluate on DATA): "
+                        "RUNG/transfer_<stem>.json and a table in OUT/transfer_<stem>/")
     args = parser.parse_args(argv)
     common = COMMON if args.size == "small" else STUDY_SIZE
     out = pathlib.Path(args.out)
@@ -404,7 +439,30 @@ def main(argv: list[str] | None = None) -> int:
     table = write_reports(out, results, title=args.title, test_sims=split["test_sims"],
                           nodes=args.nodes)
     print(table)
+    if args.transfer:
+        print(_transfer(pathlib.Path(args.transfer), results, out, args, split, common))
     return 0
+
+
+def _transfer(other: pathlib.Path, results: dict, out: pathlib.Path, args, split: dict,
+              common: dict) -> str:
+    """Evaluate every rung of ``results`` on all simulations of ``other`` (resumable: a rung's
+    ``transfer_<stem>.json`` is reused) and write their table into ``out/transfer_<stem>/``."""
+    names = list(open_dataset(other).names)
+    rungs = {r.name: r for r in RUNGS}
+    moved = {}
+    for name in results:
+        path = out / name / f"transfer_{other.stem}.json"
+        if path.is_file():
+            moved[name] = json.loads(path.read_text())
+            continue
+        runs = _member_runs(rungs[name], out, args.dataset, split, args.nodes, common)
+        moved[name] = _evaluate(runs, str(other), rungs[name].guards, args.nodes, names)
+        atomic_write_text(path, json.dumps(moved[name], indent=1))
+    folder = out / f"transfer_{other.stem}"
+    folder.mkdir(exist_ok=True)
+    return write_reports(folder, moved, title=f"{args.title} models on {other.name}",
+                         test_sims=names, nodes=args.nodes)
 
 
 if __name__ == "__main__":

@@ -128,3 +128,46 @@ def test_study_size_trains_the_study_model_at_batch_8(tmp_path, monkeypatch):
     assert "model_config" not in study and study["batch_size"] == 8
     assert small["model_config"] == ladder.SMALL_MGN and small["batch_size"] == 4
     assert study["noise_walk"] and study["history"] == 2 == small["history"]
+
+
+def test_transfer_evaluates_every_rung_on_every_simulation_of_the_other_dataset(tmp_path,
+                                                                                monkeypatch):
+    """--transfer DATA: each rung's models rolled out on all simulations of DATA (the rung's
+    own reused / ensemble runs), a per-rung JSON reused on a second call, and a table."""
+    import json
+    import types
+
+    from dataset_factory import write_good
+
+    ladder = _ladder(monkeypatch)
+    other = write_good(tmp_path / "other.h5", n_sims=2)
+    out = tmp_path / "ladder"
+    calls = []
+
+    def fake_member_runs(rung, out_, data, split, n_nodes, common=None):
+        return [out_ / rung.name / "run"] * rung.members
+
+    def fake_evaluate(runs, data, guards, n_nodes=None, names=None):
+        calls.append((len(runs), data, guards, names))
+        return {"mean": {"mse1_all": 1.0, "mse1_all_cv": 2.0, "mse1_phase": 1.0,
+                         "mse1_phase_cv": 2.0, "mse10": 0.1, "mse_full": 0.5,
+                         "mse_full_cv": 1.0, "final_centroid_r": 0.7,
+                         "final_centroid_cv_r": 3.0, "max_outside": 0.1,
+                         "max_outside_cv": 0.5, "max_correction_r": 0.0, "mse10_cv": 0.2},
+                "simulations": {}, "epochs": 3}
+
+    monkeypatch.setattr(ladder, "_member_runs", fake_member_runs)
+    monkeypatch.setattr(ladder, "_evaluate", fake_evaluate)
+    report = sys.modules["ladder_report"]
+    monkeypatch.setattr(report, "plot_error_per_step", lambda *a, **k: None)
+    for name in ("speed03_guards", "speed03_seeds"):
+        (out / name).mkdir(parents=True)
+    args = types.SimpleNamespace(dataset="train.h5", nodes=None, title="T")
+    results = {"speed03_guards": {"epochs": 3}, "speed03_seeds": {"epochs": 3}}
+    text = ladder._transfer(other, results, out, args, {}, {})
+    assert calls == [(1, str(other), True, ["sim_0", "sim_1"]),
+                     (2, str(other), False, ["sim_0", "sim_1"])]
+    assert json.loads((out / "speed03_seeds" / "transfer_other.json").read_text())["epochs"] == 3
+    assert "speed03_guards" in text and (out / "transfer_other" / "table.md").is_file()
+    ladder._transfer(other, results, out, args, {}, {})
+    assert len(calls) == 2  # reused, not evaluated again

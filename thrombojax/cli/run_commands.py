@@ -72,6 +72,16 @@ def _add_train(sub) -> None:
                    "in the frames before s_{t-1} (s_t, its velocity and the target unchanged), so "
                    "the model does not carry a clot-wide acceleration over from its history, "
                    "which in a rollout speeds the clot up step after step (default 0: off)")
+    p.add_argument("--speed-noise", type=NN_FLOAT, help="speed noise, a fraction: the clot's "
+                   "input motion scaled by 1 + N(0, this^2), one draw per window (s_t and the "
+                   "target unchanged), so the model learns to bring a clot that moves too fast "
+                   "or too slow back to the data's speed; it pulls toward the training data's "
+                   "speeds (default 0: off)")
+    p.add_argument("--time-scale", type=float, help="time-scaling augmentation, the largest "
+                   "factor F >= 1: each window's clot motion played F^u times as fast, u ~ "
+                   "U(-1, 1) (velocities k, accelerations k^2 times), so a dataset at another "
+                   "frame rate, or a clot driven faster, is within the training speeds "
+                   "(default 1: off)")
     p.add_argument("--seed", type=NN_INT, help="seed of initialisation, data order, augmentations")
     p.add_argument("--skip-frames", type=NN_INT, help="first frames never used as frame t of a "
                    "window (default 0: every window)")
@@ -125,7 +135,7 @@ def _run_train(args) -> int:
              "n_test", "tiny", "rollout_steps", "noise_gamma", "pushforward_steps",
              "curriculum_epochs", "frame", "wall_features", "history", "noise_walk",
              "stop_history_gradient", "noise_shared", "wall_noise", "wall_signed",
-             "history_noise")
+             "history_noise", "speed_noise", "time_scale")
     overrides = {k: getattr(args, k) for k in names if getattr(args, k) is not None}
     from thrombojax.train.recipes import DEFAULT_RECIPE, recipe
 

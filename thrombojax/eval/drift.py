@@ -15,6 +15,11 @@ leaves the vessel, while the rollout speeds up a little every step. Two measures
   acceleration follows from the positions and velocity); the ladder's models of the default
   recipe with wall noise and signed wall features carry about half over (0.47-0.48,
   ``experiments/results/ladder_budget/bendvessel_histnoise/``).
+- :func:`speed_carry`: of a clot-wide speed error in the inputs (every frame before s_t moved so
+  the clot's input motion reads ``1 + delta`` times the truth), the share the step's predicted
+  next motion keeps. Constant velocity keeps all of it (1); a step that keeps all of it cannot
+  pull a rollout's speed back, and any bias drifts the speed; below 1 the step brings the speed
+  back toward the data's (:func:`thrombojax.train.noise.add_speed_noise` trains that).
 
 Both are teacher-forced or post-hoc measures on host arrays; nothing here is compiled for a
 rollout.
@@ -30,7 +35,7 @@ from thrombojax.eval.single_step import batched_next
 from thrombojax.simulator.step import LearnedStep
 from thrombojax.types import TargetStats, clot_mask
 
-__all__ = ["centroid_speed", "history_gain"]
+__all__ = ["centroid_speed", "history_gain", "speed_carry"]
 
 
 def centroid_speed(trajectory: np.ndarray, clot_mask: np.ndarray) -> np.ndarray:
@@ -82,24 +87,81 @@ def history_gain(
                           "has no history acceleration (needs history >= 2)")
     if not delta > 0:
         raise ConfigError(f"history gain: delta must be > 0, got {delta!r}")
+
+    def move(prev, cur, clot, along, speed):
+        moved = prev.copy()
+        moved[:-1, clot] -= delta * along
+        return moved
+
+    return _per_frame(step, params, stats, positions, node_type, mask, frames, "history gain",
+                      move, lambda shift, along, speed: float(-shift @ along) / delta)
+
+
+def speed_carry(
+    step: LearnedStep,
+    params: dict,
+    stats: TargetStats,
+    positions: np.ndarray,
+    node_type: np.ndarray,
+    frames: np.ndarray,
+    *,
+    delta: float,
+    mask: np.ndarray | None = None,
+) -> np.ndarray:
+    """Share of a clot-wide speed error in the inputs that a step keeps, per frame.
+
+    At each frame ``t``: the clot nodes of every frame before s_t are moved to
+    ``s_t - (1 + delta) (s_t - s_k)`` (the clot's input motion reads ``1 + delta`` times the
+    truth; s_t as it is); the share is how much the predicted centroid motion along the clot's
+    motion grows, over ``delta`` times the clot's speed. 1: the error is kept (constant velocity);
+    0: the step brings the speed back to what it predicts from the true inputs in one step.
+
+    Args:
+        step: a learned step. params, stats: its variables and statistics.
+        positions: ``[T, n_nodes, 3]`` a trajectory (scaled coordinates). node_type: ``[n_nodes]``.
+        frames: the frames ``t`` (each ``>= step.history`` and ``< T``) to measure at.
+        delta: the relative speed error (> 0; small, e.g. 0.05).
+        mask: ``[n_nodes]`` real nodes (default: all).
+    Returns:
+        ``[len(frames)]`` shares.
+    Raises:
+        ConfigError: a step with a cell grid, a bad ``delta`` or a clot at rest at a frame.
+    """
+    step.require_dense("speed carry")
+    if not delta > 0:
+        raise ConfigError(f"speed carry: delta must be > 0, got {delta!r}")
+
+    def move(prev, cur, clot, along, speed):
+        moved = prev.copy()
+        moved[:, clot] = cur[None, clot] - (1.0 + delta) * (cur[None, clot] - prev[:, clot])
+        return moved
+
+    return _per_frame(step, params, stats, positions, node_type, mask, frames, "speed carry",
+                      move, lambda shift, along, speed: float(shift @ along) / (delta * speed))
+
+
+def _per_frame(step, params, stats, positions, node_type, mask, frames, what, move, share):
+    """For each frame: the step's next centroid from the true inputs and from the inputs
+    ``move(prev, cur, clot, along, speed)`` makes (one call of the compiled step for both), and
+    ``share(shift of the centroid, along, speed)``."""
     positions = np.asarray(positions, np.float32)
     node_type = np.asarray(node_type)
     mask = np.ones(len(node_type), bool) if mask is None else np.asarray(mask, bool)
     clot = np.asarray(clot_mask(node_type, mask), bool)
-    gains = []
+    out = []
     for t in np.asarray(frames, int):
-        cur, prev = positions[t], np.asarray(step.previous(positions, t), np.float32)
+        cur, given = positions[t], np.asarray(step.previous(positions, t), np.float32)
+        prev = given.reshape(-1, *cur.shape)  # [H, n_nodes, 3] (history 1 gives [n_nodes, 3])
         v = cur[clot].mean(axis=0) - prev[-1][clot].mean(axis=0)
         speed = float(np.linalg.norm(v))
         if speed == 0.0:
-            raise ConfigError(f"history gain: the clot does not move at frame {t}")
+            raise ConfigError(f"{what}: the clot does not move at frame {t}")
         along = v / speed
-        moved = prev.copy()
-        moved[:-1, clot] -= delta * along
-        # the window as it is and with the history moved, in one call
-        nxt = np.asarray(batched_next(step, params, stats, jnp.asarray(np.stack([prev, moved])),
+        moved = move(prev, cur, clot, along, speed).reshape(given.shape)
+        # the window as it is and with the inputs moved, in one call
+        nxt = np.asarray(batched_next(step, params, stats, jnp.asarray(np.stack([given, moved])),
                                       jnp.asarray(np.stack([cur, cur])), jnp.asarray(node_type),
                                       jnp.asarray(mask)))
         base, pert = nxt[:, clot].mean(axis=1)
-        gains.append(float((base - pert) @ along) / delta)
-    return np.asarray(gains)
+        out.append(share(pert - base, along, speed))
+    return np.asarray(out)

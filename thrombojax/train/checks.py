@@ -36,6 +36,8 @@ _RULES: dict[str, tuple[str, float, bool, bool]] = {
     "noise_shared": ("float", 0.0, True, False),
     "wall_noise": ("float", 0.0, True, False),
     "history_noise": ("float", 0.0, True, False),
+    "speed_noise": ("float", 0.0, True, False),
+    "time_scale": ("float", 1.0, True, False),
     "seed": ("int", 0, True, False),
     "split_seed": ("int", 0, True, False),
     "n_val": ("int", 0, True, False),

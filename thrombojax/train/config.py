@@ -64,6 +64,15 @@ class TrainConfig:
             ``N(0, history_noise^2)`` vector in the frames before s_{t-1} (needs ``history``
             >= 2), the target unchanged, so the model does not carry a clot-wide acceleration
             over from its history (0: off; :func:`thrombojax.train.noise.add_history_noise`).
+        speed_noise: speed noise, a fraction (dimensionless): the clot's input motion scaled
+            by ``1 + e``, ``e ~ N(0, speed_noise^2)`` per window, s_t and the target unchanged,
+            so the model learns to bring a clot's speed back to the data's (0: off;
+            :func:`thrombojax.train.noise.add_speed_noise`).
+        time_scale: time-scaling augmentation, the largest factor ``F`` (>= 1): each
+            window's clot motion played ``k = F^u`` times as fast, ``u ~ U(-1, 1)`` (velocities
+            ``k``, accelerations ``k^2`` times), so a dataset at another frame rate or a clot
+            driven faster is not outside the training speeds (1: off;
+            :func:`thrombojax.train.noise.time_scale_window`).
         seed: initialisation, data order, augmentations.
         split_seed: which simulations are validation / test.
         n_val, n_test: simulations held out for validation / test.
@@ -114,6 +123,8 @@ class TrainConfig:
     noise_shared: float = 0.0
     wall_noise: float = 0.0
     history_noise: float = 0.0
+    speed_noise: float = 0.0
+    time_scale: float = 1.0
     seed: int = 0
     split_seed: int = 0
     n_val: int = 2

@@ -257,7 +257,9 @@ def train(
                                              noise_walk=cfg.noise_walk,
                                              noise_shared=cfg.noise_shared,
                                              wall_noise=cfg.wall_noise * radius,
-                                             history_noise=cfg.history_noise * radius, k=k,
+                                             history_noise=cfg.history_noise * radius,
+                                             speed_noise=cfg.speed_noise,
+                                             time_scale=cfg.time_scale, k=k,
                                              pushforward=cfg.pushforward_steps)
         return train_steps[k]
 

@@ -35,6 +35,29 @@ follow them: the model learns not to carry a clot-wide acceleration over from it
 rollout the history is the model's own output, and a step that carries half of the last
 step's acceleration over (measured on the ladder's wall-noise models: 0.47-0.48) amplifies
 every small bias into a steady speed-up of the clot.
+
+Speed noise (:func:`add_speed_noise`): the clot's input motion is scaled by ``1 + e``,
+``e ~ N(0, std^2)`` one number per window: every frame before s_t is moved to
+``s_t - (1 + e) (s_t - s_k)``, so each input velocity (and the history's accelerations) reads
+``1 + e`` times the truth while s_t and the target stay. The model learns to bring a clot that
+moves too fast or too slow back to the speed the data says, in one step. Without it nothing pulls
+a rollout's speed back: the true clot slides at a steady speed set by its drive and friction,
+which no input shows but the motion itself, so a model's own speed error is never seen as one
+and a small bias drifts the clot's speed step after step (measured on the ladder's models:
+every rollout speeds up). The per-node noise above is averaged away by message passing and too
+small to be read as a speed error. What the model learns is the speed the training data holds
+given the inputs: it pulls toward it the more the larger ``std`` is against the spread of the
+data's speeds, so a clot of another dataset that moves faster or slower than any training clot
+is pulled toward the training speeds too (the ladder's results README measures both sides).
+
+Time scaling (:func:`time_scale_window`, an augmentation rather than a noise): the window's clot
+motion is played ``k`` times as fast, ``k = F^u``, ``u ~ U(-1, 1)``: every velocity becomes
+``k v_t + k^2 (v_j - v_t)`` (so the current velocity ``k v_t`` and every acceleration ``k^2``
+times the truth, as a trajectory ``x(k tau)``), the positions their sum from s_t, which stays;
+the targets move with it. A clot of a dataset recorded at another frame rate, or driven
+faster, moves more or less per frame than any training clot; the per-frame speed of a dataset
+whose whole run is resampled to a fixed frame count is set by the vessel's length (the ladder's
+BendVessel clots slide 0.27-0.34 r per frame, a 5 r longer outlet makes that 0.43).
 """
 
 from __future__ import annotations
@@ -45,7 +68,8 @@ import jax.numpy as jnp
 from thrombojax.graph.wall_nodes import local_wall_plane
 from thrombojax.types import clot_mask
 
-__all__ = ["add_training_noise", "add_wall_noise", "add_history_noise"]
+__all__ = ["add_training_noise", "add_wall_noise", "add_history_noise", "add_speed_noise",
+           "time_scale_window"]
 
 
 def add_training_noise(
@@ -194,3 +218,76 @@ def add_history_noise(
     shift = std * jax.random.normal(key, (1, 3), frames.dtype)
     move = jnp.where(clot_mask(node_type, mask)[:, None], shift, 0.0)
     return frames.at[:current - 1].add(move)
+
+
+def add_speed_noise(
+    key: jax.Array,
+    frames: jax.Array,
+    node_type: jax.Array,
+    mask: jax.Array,
+    *,
+    std: float,
+    current: int,
+) -> jax.Array:
+    """Scale the clot's input motion by one random factor ``1 + e`` (module docstring).
+
+    Args:
+        key: PRNG key.
+        frames: ``[W, n_nodes, 3]`` the window, scaled coordinates; ``frames[current]`` is s_t.
+        node_type: ``[n_nodes]`` NodeType values. mask: ``[n_nodes]`` real-node mask.
+        std: standard deviation of ``e``, a fraction of the motion (dimensionless; 0 returns
+            ``frames`` unchanged).
+        current: index of s_t in the window (the step's ``history``, >= 1).
+    Returns:
+        ``[W, n_nodes, 3]``: the clot nodes of frames ``0 .. current - 1`` at
+        ``s_t - (1 + e) (s_t - s_k)``; s_t, the later frames and every other node as given.
+    """
+    if std == 0.0:
+        return frames
+    if not std > 0.0:
+        raise ValueError(f"speed noise std must be >= 0, got {std!r}")
+    if current < 1:
+        raise ValueError(f"speed noise needs s_t at index >= 1 of the window, got {current!r}")
+    e = std * jax.random.normal(key, (), frames.dtype)
+    now = frames[current]
+    before = frames[:current]
+    scaled = now[None] - (1.0 + e) * (now[None] - before)
+    moving = clot_mask(node_type, mask)[None, :, None]
+    return frames.at[:current].set(jnp.where(moving, scaled, before))
+
+
+def time_scale_window(
+    key: jax.Array,
+    frames: jax.Array,
+    node_type: jax.Array,
+    mask: jax.Array,
+    *,
+    factor: float,
+    current: int,
+) -> jax.Array:
+    """Play the clot's motion in the window ``k = factor^u`` times as fast (module docstring).
+
+    Args:
+        key: PRNG key.
+        frames: ``[W, n_nodes, 3]`` the window (inputs, s_t at ``current``, targets).
+        node_type: ``[n_nodes]`` NodeType values. mask: ``[n_nodes]`` real-node mask.
+        factor: the largest speed-up (>= 1; 1 returns ``frames`` unchanged); ``k`` is
+            log-uniform in ``[1 / factor, factor]``.
+        current: index of s_t in the window (>= 1).
+    Returns:
+        ``[W, n_nodes, 3]``: clot nodes with velocities ``k v_t + k^2 (v_j - v_t)`` summed from
+        s_t (unchanged); every other node as given.
+    """
+    if factor == 1.0:
+        return frames
+    if not factor > 1.0:
+        raise ValueError(f"time scale factor must be >= 1, got {factor!r}")
+    if current < 1:
+        raise ValueError(f"time scaling needs s_t at index >= 1 of the window, got {current!r}")
+    k = jnp.exp(jnp.log(factor) * jax.random.uniform(key, (), frames.dtype, -1.0, 1.0))
+    v = frames[1:] - frames[:-1]  # v[j - 1] = s_j - s_{j-1}
+    now = v[current - 1]
+    scaled = k * now[None] + k * k * (v - now[None])
+    path = jnp.concatenate([jnp.zeros_like(frames[:1]), jnp.cumsum(scaled, axis=0)])
+    out = frames[current][None] + path - path[current][None]
+    return jnp.where(clot_mask(node_type, mask)[None, :, None], out, frames)

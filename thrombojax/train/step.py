@@ -46,7 +46,13 @@ from thrombojax.models.registry import Surrogate
 from thrombojax.simulator.flat import FlatStep, flat_batch_ok
 from thrombojax.simulator.step import LearnedStep, make_step
 from thrombojax.train.loss import flat_window_loss_terms, window_loss_terms
-from thrombojax.train.noise import add_history_noise, add_training_noise, add_wall_noise
+from thrombojax.train.noise import (
+    add_history_noise,
+    add_speed_noise,
+    add_training_noise,
+    add_wall_noise,
+    time_scale_window,
+)
 from thrombojax.train.state import TrainState
 from thrombojax.types import TargetStats
 
@@ -105,6 +111,8 @@ def batch_loss(
     noise_shared: float = 0.0,
     wall_noise: float = 0.0,
     history_noise: float = 0.0,
+    speed_noise: float = 0.0,
+    time_scale: float = 1.0,
     k: int = 1,
     pushforward: int = 0,
     flat_batch: bool = False,
@@ -125,6 +133,10 @@ def batch_loss(
             (:func:`thrombojax.train.noise.add_wall_noise`; 0: off).
         history_noise: standard deviation (scaled coordinates) of the clot-wide shift of the
             frames before s_{t-1} (:func:`thrombojax.train.noise.add_history_noise`; 0: off).
+        speed_noise: standard deviation of the factor ``1 + e`` the clot's input motion is
+            scaled by (:func:`thrombojax.train.noise.add_speed_noise`; 0: off).
+        time_scale: largest factor the window's clot motion is played faster or slower by
+            (:func:`thrombojax.train.noise.time_scale_window`; 1: off).
         k: steps of the unrolled loss (1: the single-step loss).
         pushforward: steps applied first without gradients (push-forward training).
         flat_batch: run the model once on the batch as one flat graph
@@ -142,7 +154,8 @@ def batch_loss(
     corrupt = functools.partial(_corrupt, current=step.history, noise_std=noise_std,
                                 noise_gamma=noise_gamma, noise_walk=noise_walk,
                                 noise_shared=noise_shared, wall_noise=wall_noise,
-                                history_noise=history_noise)
+                                history_noise=history_noise, speed_noise=speed_noise,
+                                time_scale=time_scale)
 
     def one(frames, node_type, mask, key):
         model_key = None
@@ -172,11 +185,18 @@ def batch_loss(
 
 
 def _corrupt(key, frames, node_type, mask, *, current, noise_std, noise_gamma, noise_walk,
-             noise_shared, wall_noise, history_noise):
-    """One training window with its input noise (:mod:`thrombojax.train.noise`): the Gaussian
-    or random-walk noise from ``key``, then the wall noise from ``fold_in(key, 1)`` and the
-    history noise from ``fold_in(key, 2)`` (so turning either on leaves the other draws of a
-    seed unchanged)."""
+             noise_shared, wall_noise, history_noise, speed_noise, time_scale):
+    """One training window with its input noise (:mod:`thrombojax.train.noise`): the time
+    scaling first from ``fold_in(key, 4)``, the speed noise (on the clean motion) from
+    ``fold_in(key, 3)``, then the Gaussian or random-walk
+    noise from ``key``, the wall noise from ``fold_in(key, 1)`` and the history noise from
+    ``fold_in(key, 2)`` (so turning any on leaves the other draws of a seed unchanged)."""
+    if time_scale != 1.0:
+        frames = time_scale_window(jax.random.fold_in(key, 4), frames, node_type, mask,
+                                   factor=time_scale, current=current)
+    if speed_noise > 0:
+        frames = add_speed_noise(jax.random.fold_in(key, 3), frames, node_type, mask,
+                                 std=speed_noise, current=current)
     if noise_std > 0:
         frames = add_training_noise(key, frames, node_type, mask, std=noise_std,
                                     gamma=noise_gamma, current=current, walk=noise_walk,
@@ -219,6 +239,8 @@ def make_train_step(
     noise_shared: float = 0.0,
     wall_noise: float = 0.0,
     history_noise: float = 0.0,
+    speed_noise: float = 0.0,
+    time_scale: float = 1.0,
     k: int = 1,
     pushforward: int = 0,
     donate: bool = True,
@@ -230,8 +252,8 @@ def make_train_step(
         model: the surrogate (static).
         tx: the optimiser.
         stats: target statistics (closed over, constants of the compiled step).
-        noise_std, noise_gamma, noise_walk, noise_shared, wall_noise, history_noise: training
-            noise (0: off; :func:`batch_loss`).
+        noise_std, noise_gamma, noise_walk, noise_shared, wall_noise, history_noise,
+            speed_noise, time_scale: training noise and time scaling (:func:`batch_loss`).
         k: steps of the unrolled loss (1: single step).
         pushforward: steps applied first without gradients (push-forward training).
         donate: donate the old state's buffers to the new one.
@@ -248,7 +270,8 @@ def make_train_step(
                 learned, params, stats, batch, rng, train=True,
                 noise_std=noise_std, noise_gamma=noise_gamma, noise_walk=noise_walk,
                 noise_shared=noise_shared, wall_noise=wall_noise,
-                history_noise=history_noise, k=k,
+                history_noise=history_noise, speed_noise=speed_noise,
+                time_scale=time_scale, k=k,
                 pushforward=pushforward,
                 flat_batch=flat_batch,
             )

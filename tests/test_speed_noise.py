@@ -1,0 +1,145 @@
+"""Speed noise: the clot's input motion scaled by one random factor, s_t and the target unchanged.
+
+The true clot slides at a steady speed that no input shows but its own motion, so a step trained
+on clean windows keeps whatever speed it is given (constant velocity's behaviour): in a rollout
+its own speed error is never pulled back. The speed noise
+(:func:`thrombojax.train.noise.add_speed_noise`) shows it clots that move too fast or too slow
+with the true next frame as the target, so it learns to bring the speed back
+(:func:`thrombojax.eval.drift.speed_carry` measures how much of a speed error a step keeps).
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from thrombojax.data.batching import Batch
+from thrombojax.errors import ConfigError
+from thrombojax.eval.drift import speed_carry
+from thrombojax.train.config import TrainConfig
+from thrombojax.train.noise import add_speed_noise
+from thrombojax.types import NodeType, TargetStats
+
+STATS = TargetStats(mean=jnp.zeros(3), std=jnp.full(3, 0.02), velocity_std=jnp.asarray(0.05))
+
+
+def _window(speed: float, n_clot: int = 48, n_pad: int = 4, frames: int = 4, seed: int = 0):
+    """A clot (a ball of nodes) moving along x at ``speed`` per frame beside a fixed ring of
+    vessel nodes; ``frames`` frames, padded nodes last."""
+    rng = np.random.default_rng(seed)
+    ang = np.linspace(0, 2 * np.pi, 16, endpoint=False)
+    vessel = np.array([[0.0, 1.2 * np.cos(a), 1.2 * np.sin(a)] for a in ang])
+    clot = rng.normal(size=(n_clot, 3)) * 0.3
+    x = np.concatenate([vessel, clot, np.zeros((n_pad, 3))]).astype(np.float32)
+    nt = np.array([NodeType.VESSEL] * len(vessel) + [NodeType.CLOT] * n_clot
+                  + [NodeType.VESSEL] * n_pad, np.int32)
+    mask = np.arange(len(x)) < len(vessel) + n_clot
+    moving = (nt == NodeType.CLOT) & mask
+    out = np.repeat(x[None], frames, axis=0)
+    out[:, moving, 0] += (speed * np.arange(frames, dtype=np.float32))[:, None]
+    # a little rotation so the clot's nodes do not all move alike
+    out[:, moving, 1] += 0.01 * np.arange(frames)[:, None] * out[0, moving, 2][None]
+    return jnp.asarray(out), jnp.asarray(nt), jnp.asarray(mask)
+
+
+def test_speed_noise_scales_the_input_motion_of_the_clot_by_one_factor():
+    frames, nt, mask = _window(0.05, frames=6)
+    out = np.asarray(add_speed_noise(jax.random.key(0), frames, nt, mask, std=0.2, current=3))
+    f = np.asarray(frames)
+    clot = np.asarray((nt == NodeType.CLOT) & mask)
+    motion, noisy = (f[3] - f[:3])[:, clot], (out[3] - out[:3])[:, clot]
+    factor = noisy[0, 0, 0] / motion[0, 0, 0]  # along x: 0.15 in three frames
+    assert abs(factor - 1.0) > 1e-3
+    np.testing.assert_allclose(noisy, factor * motion, atol=2e-6)  # one factor, every node, frame
+    assert not (out - f)[:, ~clot].any()  # vessel and padded nodes stay
+    assert not (out - f)[3:].any()  # s_t and the targets stay
+
+
+def test_speed_noise_off_and_bad_values():
+    frames, nt, mask = _window(0.05)
+    assert add_speed_noise(jax.random.key(0), frames, nt, mask, std=0.0, current=1) is frames
+    with pytest.raises(ValueError, match="speed noise std"):
+        add_speed_noise(jax.random.key(0), frames, nt, mask, std=-0.1, current=1)
+    with pytest.raises(ValueError, match="index >= 1"):
+        add_speed_noise(jax.random.key(0), frames, nt, mask, std=0.1, current=0)
+    with pytest.raises(ConfigError, match="speed_noise"):
+        TrainConfig(speed_noise=-0.1)
+    TrainConfig(speed_noise=0.03)
+    from thrombojax.cli import build_parser
+
+    args = build_parser().parse_args(["train", "--dataset", "d.h5", "--model", "mgn", "--out",
+                                      "o", "--speed-noise", "0.03"])
+    assert args.speed_noise == 0.03
+
+
+def _tiny_step():
+    from thrombojax.models.registry import create_model, get_config
+    from thrombojax.simulator.step import make_step
+
+    return make_step(create_model("mgn", get_config("mgn", tiny=True, max_neighbors=8,
+                                                    radius=0.45)))
+
+
+SPEEDS = (0.04, 0.05, 0.06)
+
+
+def _batch():
+    windows = [_window(v, seed=i) for i, v in enumerate(SPEEDS)]
+    return Batch(frames=np.stack([np.asarray(w[0]) for w in windows]),
+                 node_type=np.stack([np.asarray(w[1]) for w in windows]),
+                 mask=np.stack([np.asarray(w[2]) for w in windows]),
+                 generated=np.zeros(len(windows), bool))
+
+
+def test_the_training_loss_uses_the_speed_noise():
+    from thrombojax.train.step import batch_loss
+
+    batch, step = _batch(), _tiny_step()
+    params = step.init(jax.random.key(0), batch.frames[0, 0], batch.frames[0, 1],
+                       batch.node_type[0], batch.mask[0])
+    losses = [float(batch_loss(step, params, STATS, batch, jax.random.key(1), train=True,
+                               speed_noise=s)[0]) for s in (0.0, 0.0, 0.2)]
+    assert losses[0] == losses[1] != losses[2]
+
+
+def _carry_after_training(speed_noise: float) -> float:
+    """Train the tiny step on clots that keep their speed (0.04, 0.05 or 0.06 per frame), then
+    return the share of a 5 % speed error in its inputs that its prediction keeps."""
+    from thrombojax.train.schedule import make_optimizer
+    from thrombojax.train.step import init_state, make_train_step
+
+    batch, step = _batch(), _tiny_step()
+    tx = make_optimizer(3e-3)
+    state = init_state(step, tx, jax.random.key(0), batch)
+    train_step = make_train_step(step, tx, STATS, speed_noise=speed_noise, donate=False)
+    for i in range(200):
+        state, _ = train_step(state, batch, jax.random.key(i))
+    frames, nt, mask = _window(0.05, seed=7)
+    return float(speed_carry(step, state.params, STATS, np.asarray(frames), np.asarray(nt),
+                             [1, 2], delta=0.05, mask=np.asarray(mask)).mean())
+
+
+def test_speed_noise_teaches_a_model_to_bring_a_speed_error_back():
+    """Fails without the noise: trained on clots that keep their speed, the model keeps a speed
+    error it is given (as constant velocity does, carry near 1); with the noise (std 0.3 of the
+    motion, above the spread of the training speeds) it pulls most of it back."""
+    without = _carry_after_training(0.0)
+    assert without > 0.7
+    assert _carry_after_training(0.3) < 0.5 * without
+
+
+def test_speed_carry_of_constant_velocity_is_one_and_bad_values_are_refused():
+    from thrombojax.models.registry import create_model, identity_stats
+    from thrombojax.simulator.step import make_step
+
+    frames, nt, mask = (np.asarray(a) for a in _window(0.05, frames=5))
+    cv = make_step(create_model("constant_velocity"))
+    np.testing.assert_allclose(speed_carry(cv, {}, identity_stats(), frames, nt, [1, 2, 3],
+                                           delta=0.05, mask=mask), 1.0, rtol=1e-3)
+    with pytest.raises(ConfigError, match="delta"):
+        speed_carry(cv, {}, identity_stats(), frames, nt, [1], delta=0.0)
+    still = np.repeat(frames[:1], 3, axis=0)
+    with pytest.raises(ConfigError, match="does not move at frame 1"):
+        speed_carry(cv, {}, identity_stats(), still, nt, [1], delta=0.05, mask=mask)
