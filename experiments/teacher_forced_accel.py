@@ -8,6 +8,15 @@ frames; printed is the clot centroid's acceleration along its motion (s_t - s_{t
 centroid), true / predicted, in milli vessel radii per frame squared. A rollout that speeds
 up from true-input predictions near the truth's zero is driven by the states it reaches, not
 by the one step (``experiments/results/ladder_budget/bendvessel_histnoise/README.md``).
+
+With ``--on-rollout`` the run is also rolled out (guards off) from the dataset's
+``skip_frames``, and per rollout frame printed are: how far the rollout's clot centroid is
+ahead of the true one along the motion and off it sideways (radii), its speed and the truth's
+(radii per frame), and the predicted acceleration along the motion (milli-r per frame squared)
+from the rollout's own frames, from the true clot moved frame by frame onto the rollout's
+centroid track (the true shape, the rollout's place and motion), from the true clot moved to
+the rollout's place at t (the true shape and motion), and from the true frames themselves
+(teacher-forced): which of the rollout's errors the step's acceleration answers to.
 """
 
 from __future__ import annotations
@@ -20,6 +29,8 @@ import numpy as np
 from thrombojax.data.radius import vessel_radius
 from thrombojax.eval.single_step import batched_next, scaled_simulation
 from thrombojax.io.hdf5 import open_dataset
+from thrombojax.simulator.rollout import rollout_with_corrections
+from thrombojax.study import skip_frames
 from thrombojax.train.state import TrainedModel, load_trained
 from thrombojax.types import clot_mask
 
@@ -50,13 +61,60 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--run", required=True, help="a trained run folder")
     parser.add_argument("--dataset", required=True, help="the dataset (.h5)")
     parser.add_argument("--sims", required=True, help="simulations (comma-separated)")
+    parser.add_argument("--on-rollout", action="store_true",
+                        help="also the step's acceleration on its own rollout's states")
     args = parser.parse_args(argv)
     trained, dataset = load_trained(args.run), open_dataset(args.dataset)
     for name in args.sims.split(","):
         rows = accelerations(trained, dataset, name)
         print(f"{name} (t: true / predicted, milli-r per frame^2)")
         print(" ".join(f"{t}:{a:+.0f}/{p:+.0f}" for t, a, p in rows))
+        if args.on_rollout:
+            print(f"{name} on its rollout: t | ahead, sideways (r) | speed rollout / true "
+                  "(r/frame) | acceleration from the rollout / the true clot on its track / "
+                  "the true clot at its place / the true frames (milli-r/frame^2)")
+            for t, *vals in on_rollout(trained, dataset, name):
+                print(f"{t:3d} | {vals[0]:+.2f} {vals[1]:.2f} | {vals[2]:.3f} / {vals[3]:.3f} | "
+                      + " / ".join(f"{v:+.1f}" for v in vals[4:]))
     return 0
+
+
+def on_rollout(trained: TrainedModel, dataset, name: str) -> list[tuple]:
+    """Per rollout frame ``(t, ahead, sideways, speed, true speed, a_rollout, a_track, a_place,
+    a_true)`` (module docstring; radii, radii per frame, milli-radii per frame squared)."""
+    r = vessel_radius(dataset) / float(trained.scaling.scale)
+    step = trained.step
+    pos, nt = scaled_simulation(dataset, name, trained.scaling)
+    clot, mask = clot_mask(nt), np.ones(len(nt), bool)
+    skip = max(skip_frames(dataset), step.history)
+    pred, _ = rollout_with_corrections(step, trained.params, trained.stats,
+                                       step.previous(pos, skip), pos[skip], nt, mask,
+                                       pos.shape[0] - 1 - skip)
+    roll = np.concatenate([pos[:skip + 1], np.asarray(pred)])  # frame index as the truth's
+    prev_shape = np.shape(step.previous(pos, skip))  # [H, N, 3], or [N, 3] for H = 1
+
+    def accel(frames):  # frames [H + 1, N, 3]: the inputs, s_t last
+        nxt = np.asarray(batched_next(step, trained.params, trained.stats,
+                                      frames[:-1].reshape(prev_shape)[None], frames[-1][None],
+                                      nt, mask))[0]
+        c = frames[:, clot].mean(axis=1)
+        along = (c[-1] - c[-2]) / np.linalg.norm(c[-1] - c[-2])
+        return 1000 * float((nxt[clot].mean(axis=0) - 2 * c[-1] + c[-2]) @ along) / r
+
+    rows = []
+    for t in range(skip + 1, pos.shape[0] - 1):
+        true, mine = pos[t - step.history:t + 1], roll[t - step.history:t + 1]
+        ct, cr = true[:, clot].mean(axis=1), mine[:, clot].mean(axis=1)
+        track, place = true.copy(), true.copy()
+        track[:, clot] += (cr - ct)[:, None]
+        place[:, clot] += cr[-1] - ct[-1]
+        u = (ct[-1] - ct[-2]) / np.linalg.norm(ct[-1] - ct[-2])
+        off = cr[-1] - ct[-1]
+        rows.append((t, float(off @ u) / r, float(np.linalg.norm(off - (off @ u) * u)) / r,
+                     float(np.linalg.norm(cr[-1] - cr[-2])) / r,
+                     float(np.linalg.norm(ct[-1] - ct[-2])) / r,
+                     accel(mine), accel(track), accel(place), accel(true)))
+    return rows
 
 
 if __name__ == "__main__":
