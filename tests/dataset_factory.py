@@ -269,3 +269,53 @@ def rollout_state(n: int = 40, seed: int = 0):
     mask[-3:] = False
     stats = TargetStats(mean=jnp.full(3, 1e-3), std=jnp.full(3, 0.02))
     return x_prev, x_cur, node_type, mask, stats
+
+
+def window_batch(windows):
+    """A training :class:`~thrombojax.data.batching.Batch` of ``(frames, node_type, mask)``
+    windows of the same size (none generated)."""
+    from thrombojax.data.batching import Batch
+
+    return Batch(frames=np.stack([np.asarray(w[0]) for w in windows]),
+                 node_type=np.stack([np.asarray(w[1]) for w in windows]),
+                 mask=np.stack([np.asarray(w[2]) for w in windows]),
+                 generated=np.zeros(len(windows), bool))
+
+
+def train_tiny_step(step, batch, stats, steps: int = 200, **options):
+    """Train a learned step on one batch for ``steps`` Adam steps (lr 3e-3, key i at step i)
+    with the training ``options`` of :func:`thrombojax.train.step.make_train_step`; returns
+    the trained parameters."""
+    from thrombojax.train.schedule import make_optimizer
+    from thrombojax.train.step import init_state, make_train_step
+
+    tx = make_optimizer(3e-3)
+    state = init_state(step, tx, jax.random.key(0), batch)
+    train_step = make_train_step(step, tx, stats, donate=False, **options)
+    for i in range(steps):
+        state, _ = train_step(state, batch, jax.random.key(i))
+    return state.params
+
+
+def ring_clot_window(speed: float = 0.05, accel: float = 0.0, shear: float = 0.0, *,
+                     n_clot: int = 48, n_pad: int = 4, frames: int = 4, seed: int = 0):
+    """A clot (a ball of ``n_clot`` nodes) moving along x at ``speed`` per frame with constant
+    acceleration ``accel``, its nodes sheared in y by ``shear`` times their z per frame (so
+    they do not all move alike), beside a fixed ring of 16 vessel nodes; ``frames`` frames,
+    ``n_pad`` padded nodes last. Returns ``(frames [W, N, 3], node_type, mask)`` jax arrays."""
+    from thrombojax.types import NodeType
+
+    rng = np.random.default_rng(seed)
+    ang = np.linspace(0, 2 * np.pi, 16, endpoint=False)
+    vessel = np.array([[0.0, 1.2 * np.cos(a), 1.2 * np.sin(a)] for a in ang])
+    clot = rng.normal(size=(n_clot, 3)) * 0.3
+    x = np.concatenate([vessel, clot, np.zeros((n_pad, 3))]).astype(np.float32)
+    nt = np.array([NodeType.VESSEL] * len(vessel) + [NodeType.CLOT] * n_clot
+                  + [NodeType.VESSEL] * n_pad, np.int32)
+    mask = np.arange(len(x)) < len(vessel) + n_clot
+    moving = (nt == NodeType.CLOT) & mask
+    t = np.arange(frames, dtype=np.float32)
+    out = np.repeat(x[None], frames, axis=0)
+    out[:, moving, 0] += (speed * t + 0.5 * accel * t**2)[:, None]
+    out[:, moving, 1] += shear * t[:, None] * out[0, moving, 2][None]
+    return jnp.asarray(out), jnp.asarray(nt), jnp.asarray(mask)

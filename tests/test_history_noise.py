@@ -13,8 +13,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from dataset_factory import ring_clot_window, train_tiny_step, window_batch
 
-from thrombojax.data.batching import Batch
 from thrombojax.errors import ConfigError
 from thrombojax.eval.drift import centroid_speed, history_gain
 from thrombojax.train.config import TrainConfig
@@ -24,22 +24,10 @@ from thrombojax.types import NodeType, TargetStats
 STATS = TargetStats(mean=jnp.zeros(3), std=jnp.full(3, 0.02), velocity_std=jnp.asarray(0.05))
 
 
-def _window(accel: float, n_clot: int = 48, n_pad: int = 4, frames: int = 4, seed: int = 0):
-    """A clot (a ball of nodes) moving along x with velocity 0.05 and constant acceleration
-    ``accel`` beside a fixed ring of vessel nodes; ``frames`` frames, padded nodes last."""
-    rng = np.random.default_rng(seed)
-    ang = np.linspace(0, 2 * np.pi, 16, endpoint=False)
-    vessel = np.array([[0.0, 1.2 * np.cos(a), 1.2 * np.sin(a)] for a in ang])
-    clot = rng.normal(size=(n_clot, 3)) * 0.3
-    x = np.concatenate([vessel, clot, np.zeros((n_pad, 3))]).astype(np.float32)
-    nt = np.array([NodeType.VESSEL] * len(vessel) + [NodeType.CLOT] * n_clot
-                  + [NodeType.VESSEL] * n_pad, np.int32)
-    mask = np.arange(len(x)) < len(vessel) + n_clot
-    moving = (nt == NodeType.CLOT) & mask
-    t = np.arange(frames, dtype=np.float32)
-    out = np.repeat(x[None], frames, axis=0)
-    out[:, moving, 0] += (0.05 * t + 0.5 * accel * t**2)[:, None]
-    return jnp.asarray(out), jnp.asarray(nt), jnp.asarray(mask)
+def _window(accel: float, frames: int = 4):
+    """A clot moving along x with velocity 0.05 and constant acceleration ``accel`` beside a
+    ring of vessel nodes (:func:`dataset_factory.ring_clot_window`)."""
+    return ring_clot_window(0.05, accel, frames=frames)
 
 
 def test_history_noise_moves_the_clot_in_the_frames_before_the_last_one_by_one_vector():
@@ -86,11 +74,7 @@ ACCELS = (-0.02, -0.01, 0.01, 0.02)
 
 
 def _batch():
-    windows = [_window(a) for a in ACCELS]
-    return Batch(frames=np.stack([np.asarray(w[0]) for w in windows]),
-                 node_type=np.stack([np.asarray(w[1]) for w in windows]),
-                 mask=np.stack([np.asarray(w[2]) for w in windows]),
-                 generated=np.zeros(len(windows), bool))
+    return window_batch([_window(a) for a in ACCELS])
 
 
 def test_the_training_loss_uses_the_history_noise():
@@ -108,17 +92,10 @@ def _history_gain_after_training(history_noise: float) -> float:
     """Train the tiny history step on clots with a constant acceleration per window (the
     history is the only way to know it), then return how much of a change of the history's
     clot-wide acceleration its prediction carries over (1: all of it, 0: none)."""
-    from thrombojax.train.schedule import make_optimizer
-    from thrombojax.train.step import init_state, make_train_step
-
-    batch, step = _batch(), _tiny_step()
-    tx = make_optimizer(3e-3)
-    state = init_state(step, tx, jax.random.key(0), batch)
-    train_step = make_train_step(step, tx, STATS, history_noise=history_noise, donate=False)
-    for i in range(200):
-        state, _ = train_step(state, batch, jax.random.key(i))
+    step = _tiny_step()
+    params = train_tiny_step(step, _batch(), STATS, history_noise=history_noise)
     frames, nt, mask = _window(0.0)
-    return float(history_gain(step, state.params, STATS, np.asarray(frames), np.asarray(nt),
+    return float(history_gain(step, params, STATS, np.asarray(frames), np.asarray(nt),
                               [2], delta=0.02, mask=np.asarray(mask))[0])
 
 

@@ -14,8 +14,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from dataset_factory import ring_clot_window, train_tiny_step, window_batch
 
-from thrombojax.data.batching import Batch
 from thrombojax.errors import ConfigError
 from thrombojax.eval.drift import speed_carry
 from thrombojax.train.config import TrainConfig
@@ -25,23 +25,10 @@ from thrombojax.types import NodeType, TargetStats
 STATS = TargetStats(mean=jnp.zeros(3), std=jnp.full(3, 0.02), velocity_std=jnp.asarray(0.05))
 
 
-def _window(speed: float, n_clot: int = 48, n_pad: int = 4, frames: int = 4, seed: int = 0):
-    """A clot (a ball of nodes) moving along x at ``speed`` per frame beside a fixed ring of
-    vessel nodes; ``frames`` frames, padded nodes last."""
-    rng = np.random.default_rng(seed)
-    ang = np.linspace(0, 2 * np.pi, 16, endpoint=False)
-    vessel = np.array([[0.0, 1.2 * np.cos(a), 1.2 * np.sin(a)] for a in ang])
-    clot = rng.normal(size=(n_clot, 3)) * 0.3
-    x = np.concatenate([vessel, clot, np.zeros((n_pad, 3))]).astype(np.float32)
-    nt = np.array([NodeType.VESSEL] * len(vessel) + [NodeType.CLOT] * n_clot
-                  + [NodeType.VESSEL] * n_pad, np.int32)
-    mask = np.arange(len(x)) < len(vessel) + n_clot
-    moving = (nt == NodeType.CLOT) & mask
-    out = np.repeat(x[None], frames, axis=0)
-    out[:, moving, 0] += (speed * np.arange(frames, dtype=np.float32))[:, None]
-    # a little rotation so the clot's nodes do not all move alike
-    out[:, moving, 1] += 0.01 * np.arange(frames)[:, None] * out[0, moving, 2][None]
-    return jnp.asarray(out), jnp.asarray(nt), jnp.asarray(mask)
+def _window(speed: float, frames: int = 4, seed: int = 0):
+    """A clot moving along x at ``speed`` per frame, slightly sheared, beside a ring of vessel
+    nodes (:func:`dataset_factory.ring_clot_window`)."""
+    return ring_clot_window(speed, shear=0.01, frames=frames, seed=seed)
 
 
 def test_speed_noise_scales_the_input_motion_of_the_clot_by_one_factor():
@@ -86,11 +73,8 @@ SPEEDS = (0.04, 0.05, 0.06)
 
 
 def _batch():
-    windows = [_window(v, seed=i) for i, v in enumerate(SPEEDS)]
-    return Batch(frames=np.stack([np.asarray(w[0]) for w in windows]),
-                 node_type=np.stack([np.asarray(w[1]) for w in windows]),
-                 mask=np.stack([np.asarray(w[2]) for w in windows]),
-                 generated=np.zeros(len(windows), bool))
+    """Clots that keep their speed (:data:`SPEEDS` per frame), one window each."""
+    return window_batch([_window(v, seed=i) for i, v in enumerate(SPEEDS)])
 
 
 def test_the_training_loss_uses_the_speed_noise():
@@ -107,17 +91,10 @@ def test_the_training_loss_uses_the_speed_noise():
 def _carry_after_training(speed_noise: float) -> float:
     """Train the tiny step on clots that keep their speed (0.04, 0.05 or 0.06 per frame), then
     return the share of a 5 % speed error in its inputs that its prediction keeps."""
-    from thrombojax.train.schedule import make_optimizer
-    from thrombojax.train.step import init_state, make_train_step
-
-    batch, step = _batch(), _tiny_step()
-    tx = make_optimizer(3e-3)
-    state = init_state(step, tx, jax.random.key(0), batch)
-    train_step = make_train_step(step, tx, STATS, speed_noise=speed_noise, donate=False)
-    for i in range(200):
-        state, _ = train_step(state, batch, jax.random.key(i))
+    step = _tiny_step()
+    params = train_tiny_step(step, _batch(), STATS, speed_noise=speed_noise)
     frames, nt, mask = _window(0.05, seed=7)
-    return float(speed_carry(step, state.params, STATS, np.asarray(frames), np.asarray(nt),
+    return float(speed_carry(step, params, STATS, np.asarray(frames), np.asarray(nt),
                              [1, 2], delta=0.05, mask=np.asarray(mask)).mean())
 
 

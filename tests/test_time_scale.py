@@ -13,9 +13,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from test_speed_noise import STATS, _tiny_step, _window
+from dataset_factory import train_tiny_step
+from test_speed_noise import STATS, _batch, _tiny_step, _window
 
-from thrombojax.data.batching import Batch
 from thrombojax.errors import ConfigError
 from thrombojax.train.config import TrainConfig
 from thrombojax.train.noise import time_scale_window
@@ -59,22 +59,11 @@ def _error_at_unseen_speed(time_scale: float) -> float:
     """Train the tiny step on clots that keep their speed (0.04-0.06 per frame), then return the
     RMS of its predicted clot acceleration (the truth's is 0) for a clot at 0.1 per frame."""
     from thrombojax.eval.single_step import batched_next
-    from thrombojax.train.schedule import make_optimizer
-    from thrombojax.train.step import init_state, make_train_step
 
-    windows = [_window(v, seed=i) for i, v in enumerate((0.04, 0.05, 0.06))]
-    batch = Batch(frames=np.stack([np.asarray(w[0]) for w in windows]),
-                  node_type=np.stack([np.asarray(w[1]) for w in windows]),
-                  mask=np.stack([np.asarray(w[2]) for w in windows]),
-                  generated=np.zeros(len(windows), bool))
     step = _tiny_step()
-    tx = make_optimizer(3e-3)
-    state = init_state(step, tx, jax.random.key(0), batch)
-    train_step = make_train_step(step, tx, STATS, time_scale=time_scale, donate=False)
-    for i in range(200):
-        state, _ = train_step(state, batch, jax.random.key(i))
+    params = train_tiny_step(step, _batch(), STATS, time_scale=time_scale)
     frames, nt, mask = _window(0.1, seed=7)
-    nxt = batched_next(step, state.params, STATS, frames[None, 1], frames[None, 2], nt, mask)[0]
+    nxt = batched_next(step, params, STATS, frames[None, 1], frames[None, 2], nt, mask)[0]
     clot = np.asarray((nt == NodeType.CLOT) & mask)
     accel = np.asarray(nxt - 2 * frames[2] + frames[1])[clot]
     return float(np.sqrt(np.mean(accel**2)))
