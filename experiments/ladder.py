@@ -211,7 +211,7 @@ RUNGS: tuple[Rung, ...] = (
          members=2),
     # the rollout's speed error kept step after step: the same with speed noise (the clot's
     # input motion 1 + N(0, S^2) times the truth, the target unchanged: the model is shown a
-    # clot off its speed and taught to bring it back), S = 0.03 (seeds 0 and 1) and 0.1, alone
+    # clot off its speed and the true next frame), S = 0.03 (seeds 0 and 1) and 0.1, alone
     # and with the guards; and the history-noise recipe with time scaling (each window's clot
     # motion played up to 1.5x faster or slower: speeds beyond the data's), alone and guarded
     Rung("speed03", SPEED03),

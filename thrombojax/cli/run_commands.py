@@ -74,9 +74,8 @@ def _add_train(sub) -> None:
                    "which in a rollout speeds the clot up step after step (default 0: off)")
     p.add_argument("--speed-noise", type=NN_FLOAT, help="speed noise, a fraction: the clot's "
                    "input motion scaled by 1 + N(0, this^2), one draw per window (s_t and the "
-                   "target unchanged), so the model learns to bring a clot that moves too fast "
-                   "or too slow back to the data's speed; it pulls toward the training data's "
-                   "speeds (default 0: off)")
+                   "target unchanged): the model is shown a clot that moves too fast or too "
+                   "slow and the true next frame (default 0: off)")
     p.add_argument("--time-scale", type=float, help="time-scaling augmentation, the largest "
                    "factor F >= 1: each window's clot motion played F^u times as fast, u ~ "
                    "U(-1, 1) (velocities k, accelerations k^2 times), so a dataset at another "

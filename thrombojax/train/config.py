@@ -66,7 +66,7 @@ class TrainConfig:
             over from its history (0: off; :func:`thrombojax.train.noise.add_history_noise`).
         speed_noise: speed noise, a fraction (dimensionless): the clot's input motion scaled
             by ``1 + e``, ``e ~ N(0, speed_noise^2)`` per window, s_t and the target unchanged,
-            so the model learns to bring a clot's speed back to the data's (0: off;
+            so the model is shown a clot off its speed and the true next frame (0: off;
             :func:`thrombojax.train.noise.add_speed_noise`).
         time_scale: time-scaling augmentation, the largest factor ``F`` (>= 1): each
             window's clot motion played ``k = F^u`` times as fast, ``u ~ U(-1, 1)`` (velocities

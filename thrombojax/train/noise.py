@@ -39,16 +39,18 @@ every small bias into a steady speed-up of the clot.
 Speed noise (:func:`add_speed_noise`): the clot's input motion is scaled by ``1 + e``,
 ``e ~ N(0, std^2)`` one number per window: every frame before s_t is moved to
 ``s_t - (1 + e) (s_t - s_k)``, so each input velocity (and the history's accelerations) reads
-``1 + e`` times the truth while s_t and the target stay. The model learns to bring a clot that
-moves too fast or too slow back to the speed the data says, in one step. Without it nothing pulls
-a rollout's speed back: the true clot slides at a steady speed set by its drive and friction,
-which no input shows but the motion itself, so a model's own speed error is never seen as one
-and a small bias drifts the clot's speed step after step (measured on the ladder's models:
-every rollout speeds up). The per-node noise above is averaged away by message passing and too
-small to be read as a speed error. What the model learns is the speed the training data holds
-given the inputs: it pulls toward it the more the larger ``std`` is against the spread of the
-data's speeds, so a clot of another dataset that moves faster or slower than any training clot
-is pulled toward the training speeds too (the ladder's results README measures both sides).
+``1 + e`` times the truth while s_t and the target stay: the model is shown a clot that moves
+too fast or too slow and the true next frame. Why: the true clot slides at a steady speed set by
+its drive and friction, which no input shows but the motion itself, and a step trained on clean
+windows keeps a speed error it is given (:func:`thrombojax.eval.drift.speed_carry`: 1.003-1.038
+on the ladder's models), so a small bias drifts a rollout's speed step after step; the per-node
+noise above is averaged away by message passing. What a model can learn from it is the speed
+the training data holds given the inputs, so a clot faster or slower than any training clot
+could be pulled toward the training speeds. Measured (one seed, 0.1): a tiny model learns the
+pull-back (``tests/test_speed_noise.py``), the ladder's MeshGraphNet does not (carry 1.006),
+yet its rollouts speed up about half as much, on BendVessel and on a longer vessel whose clot
+is 40 % faster than any training clot
+(``experiments/results/ladder_budget/bendvessel_speed/README.md``).
 
 Time scaling (:func:`time_scale_window`, an augmentation rather than a noise): the window's clot
 motion is played ``k`` times as fast, ``k = F^u``, ``u ~ U(-1, 1)``: every velocity becomes
