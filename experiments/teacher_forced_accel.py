@@ -93,13 +93,14 @@ def on_rollout(trained: TrainedModel, dataset, name: str) -> list[tuple]:
     roll = np.concatenate([pos[:skip + 1], np.asarray(pred)])  # frame index as the truth's
     prev_shape = np.shape(step.previous(pos, skip))  # [H, N, 3], or [N, 3] for H = 1
 
-    def accel(frames):  # frames [H + 1, N, 3]: the inputs, s_t last
+    def accel(windows):  # windows [B, H + 1, N, 3]: the inputs, s_t last; one call for all
         nxt = np.asarray(batched_next(step, trained.params, trained.stats,
-                                      frames[:-1].reshape(prev_shape)[None], frames[-1][None],
-                                      nt, mask))[0]
-        c = frames[:, clot].mean(axis=1)
-        along = (c[-1] - c[-2]) / np.linalg.norm(c[-1] - c[-2])
-        return 1000 * float((nxt[clot].mean(axis=0) - 2 * c[-1] + c[-2]) @ along) / r
+                                      windows[:, :-1].reshape(len(windows), *prev_shape),
+                                      windows[:, -1], nt, mask))
+        c = windows[:, :, clot].mean(axis=2)
+        along = (c[:, -1] - c[:, -2]) / np.linalg.norm(c[:, -1] - c[:, -2], axis=-1)[:, None]
+        a = nxt[:, clot].mean(axis=1) - 2 * c[:, -1] + c[:, -2]
+        return 1000 * np.sum(a * along, axis=-1) / r
 
     rows = []
     for t in range(skip + 1, pos.shape[0] - 1):
@@ -113,7 +114,7 @@ def on_rollout(trained: TrainedModel, dataset, name: str) -> list[tuple]:
         rows.append((t, float(off @ u) / r, float(np.linalg.norm(off - (off @ u) * u)) / r,
                      float(np.linalg.norm(cr[-1] - cr[-2])) / r,
                      float(np.linalg.norm(ct[-1] - ct[-2])) / r,
-                     accel(mine), accel(track), accel(place), accel(true)))
+                     *map(float, accel(np.stack([mine, track, place, true])))))
     return rows
 
 

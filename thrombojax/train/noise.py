@@ -166,10 +166,8 @@ def add_wall_noise(
         ``[W, n_nodes, 3]``: the input frames ``0 .. current`` moved alike, the later frames by
         ``(1 - gamma)`` of the move.
     """
-    if std == 0.0:
+    if _off(std, "wall noise"):
         return frames
-    if not std > 0.0:
-        raise ValueError(f"wall noise std must be >= 0, got {std!r}")
     if not 0.0 <= gamma <= 1.0:
         raise ValueError(f"wall noise gamma must be in [0, 1], got {gamma!r}")
     signed, normal = local_wall_plane(frames[current], node_type, mask)
@@ -180,6 +178,15 @@ def add_wall_noise(
     depth = std * jnp.abs(jax.random.normal(k_size, (n,), frames.dtype))
     move = jnp.where(chosen[:, None], (jnp.maximum(-signed, 0.0) + depth)[:, None] * normal, 0.0)
     return frames.at[:current + 1].add(move).at[current + 1:].add((1.0 - gamma) * move)
+
+
+def _off(std: float, what: str) -> bool:
+    """True for ``std == 0`` (the noise is off); a negative ``std`` raises ValueError naming it."""
+    if std == 0.0:
+        return True
+    if not std > 0.0:
+        raise ValueError(f"{what} std must be >= 0, got {std!r}")
+    return False
 
 
 def add_history_noise(
@@ -210,10 +217,8 @@ def add_history_noise(
         ``[W, n_nodes, 3]``: the clot nodes of frames ``0 .. current - 2`` moved by one common
         ``N(0, std^2 I)`` vector; every other frame and node as given.
     """
-    if std == 0.0:
+    if _off(std, "history noise"):
         return frames
-    if not std > 0.0:
-        raise ValueError(f"history noise std must be >= 0, got {std!r}")
     if current < 2:
         raise ValueError(f"history noise needs a history of at least 2 frames (the step's "
                          f"accelerations), got {current!r}")
@@ -244,10 +249,8 @@ def add_speed_noise(
         ``[W, n_nodes, 3]``: the clot nodes of frames ``0 .. current - 1`` at
         ``s_t - (1 + e) (s_t - s_k)``; s_t, the later frames and every other node as given.
     """
-    if std == 0.0:
+    if _off(std, "speed noise"):
         return frames
-    if not std > 0.0:
-        raise ValueError(f"speed noise std must be >= 0, got {std!r}")
     if current < 1:
         raise ValueError(f"speed noise needs s_t at index >= 1 of the window, got {current!r}")
     e = std * jax.random.normal(key, (), frames.dtype)

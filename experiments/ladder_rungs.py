@@ -1,0 +1,120 @@
+"""The stability ladder's rungs: the training recipe, guards and reuse of each
+(``experiments/ladder.py`` runs and measures them; its docstring says what each rung adds)."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+__all__ = ["Rung", "RUNGS", "COMMON", "STUDY_SIZE", "SMALL_MGN", "SIGNED", "HISTNOISE",
+           "WALK"]
+
+SMALL_MGN = {"hidden": 32, "processor_size": 5, "max_neighbors": 12}
+_SCHEDULE = {"max_rotation": 0.0, "warmup_epochs": 2.0}
+COMMON = {**_SCHEDULE, "batch_size": 4, "model_config": SMALL_MGN}
+# ``--size study``: the study's MeshGraphNet (hidden 128, 15 blocks, 32 neighbours) and batch 8,
+# for an accelerator (each rung otherwise as above)
+STUDY_SIZE = {**_SCHEDULE, "batch_size": 8}
+NOISE = {"noise_std": 0.01}  # vessel radii
+# the rotation rung's recipe (the `rollout` recipe of `thrombojax train`), shared by the
+# ensemble rung's members
+ROTATION = {**NOISE, "pushforward_steps": 1, "rollout_steps": 3, "curriculum_epochs": 6,
+            "max_rotation": np.pi}
+# a step that also reads the acceleration before t, trained with the single-step loss (with
+# ``noise_walk``: the `history` recipe, the default of `thrombojax train`)
+HISTORY = {**NOISE, "max_rotation": np.pi, "history": 2}
+WALK = {**HISTORY, "noise_walk": True}  # the `history` recipe (rung `history_walk`)
+# it with wall noise 0.1 r and signed wall features cut off at 0.5 r (rung `wallnoise_signed`)
+SIGNED = {**WALK, "wall_noise": 0.1, "wall_features": 0.5, "wall_signed": True}
+# it with history noise 0.02 r (the clot-wide history acceleration not carried over)
+HISTNOISE = {**SIGNED, "history_noise": 0.02}
+# it with speed noise (the clot's input motion scaled by 1 + N(0, S^2), the target unchanged)
+SPEED03, SPEED10 = {**HISTNOISE, "speed_noise": 0.03}, {**HISTNOISE, "speed_noise": 0.1}
+# it with time scaling (each window played up to 1.5x faster or slower)
+TSCALE = {**HISTNOISE, "time_scale": 1.5}
+
+
+@dataclasses.dataclass(frozen=True)
+class Rung:
+    """One rung: training overrides, whether the rollout is guarded, which run it reuses."""
+
+    name: str
+    train: dict
+    guards: bool = False
+    reuse: str | None = None  # evaluate another rung's trained model
+    members: int = 1  # > 1: a deep ensemble; member 0 is ``reuse``'s model, the others seeds 1..
+
+
+RUNGS: tuple[Rung, ...] = (
+    Rung("baseline", {}),
+    Rung("noise", NOISE),
+    Rung("pushforward", {**NOISE, "pushforward_steps": 1}),
+    Rung("kstep", {**NOISE, "pushforward_steps": 1, "rollout_steps": 3, "curriculum_epochs": 6}),
+    Rung("guards", {}, guards=True, reuse="kstep"),
+    Rung("rotation", ROTATION, guards=True),
+    Rung("frame", {**NOISE, "pushforward_steps": 1, "rollout_steps": 3,
+                   "curriculum_epochs": 6, "frame": "vessel"}, guards=True),
+    Rung("clip", {**NOISE, "pushforward_steps": 1, "rollout_steps": 3,
+                  "curriculum_epochs": 6, "frame": "vessel", "grad_clip": 1.0}, guards=True),
+    Rung("wall", {**NOISE, "pushforward_steps": 1, "rollout_steps": 3, "curriculum_epochs": 6,
+                  "max_rotation": np.pi, "wall_features": 1.5}, guards=True),
+    Rung("ensemble", ROTATION, guards=True, reuse="rotation", members=3),
+    Rung("history", {**ROTATION, "history": 2}, guards=True),
+    Rung("history_lr", {**ROTATION, "history": 2, "lr": 3e-4}, guards=True),
+    Rung("history_1step", HISTORY, guards=True),
+    Rung("history3", {**HISTORY, "history": 3}, guards=True),
+    Rung("history_ensemble", HISTORY, guards=True, reuse="history_1step", members=3),
+    Rung("history_walk", WALK, guards=True),
+    Rung("walk_ensemble", WALK, guards=True, reuse="history_walk",
+         members=3),
+    Rung("history_pf", {**WALK, "pushforward_steps": 1}, guards=True),
+    Rung("history_sg", {**ROTATION, "history": 2, "noise_walk": True,
+                        "stop_history_gradient": True}, guards=True),
+    Rung("walk_shared", {**WALK, "noise_shared": 0.5}, guards=True),
+    Rung("shared_ensemble", {**WALK, "noise_shared": 0.5}, guards=True,
+         reuse="walk_shared", members=3),
+    Rung("walk_noise3", {**WALK, "noise_std": 0.03}, guards=True),
+    Rung("noise3_ensemble", {**WALK, "noise_std": 0.03}, guards=True,
+         reuse="walk_noise3", members=3),
+    # the default recipe with the distance and direction to the nearest vessel node (1.5 r)
+    Rung("walk_wall", {**WALK, "wall_features": 1.5}, guards=True),
+    # the models alone (guards off): the default recipe, and it with wall noise (clot nodes near
+    # the wall moved through it, the targets by half: the model learns to come back; 0.1 r)
+    Rung("walk_alone", WALK, reuse="history_walk"),
+    Rung("walk_wallnoise", {**WALK, "wall_noise": 0.1}),
+    Rung("wallnoise_guards", {**WALK, "wall_noise": 0.1}, guards=True, reuse="walk_wallnoise"),
+    # wall noise with signed wall features (the signed distance to the wall and its normal,
+    # cut off at 0.5 r: what tells a node that crossed the wall from one inside), alone and
+    # with the guards
+    Rung("wallnoise_signed", SIGNED),
+    Rung("signed_guards", SIGNED, guards=True, reuse="wallnoise_signed"),
+    # its seed spread: seeds 0 and 1 alone, and the two as an ensemble (guards off)
+    Rung("signed_seeds", SIGNED, reuse="wallnoise_signed", members=2),
+    # the control (signed features without the wall noise) and twice the wall noise, alone
+    Rung("signed_alone", {**WALK, "wall_features": 0.5, "wall_signed": True}),
+    Rung("wallnoise2_signed", {**SIGNED, "wall_noise": 0.2}),
+    # the rollout's speed-up: the same with history noise (the clot shifted in the frames
+    # before s_{t-1}, the target unchanged: the history's clot-wide acceleration is not
+    # carried over), alone, seeds 0 and 1 (and the two as an ensemble), and with the guards;
+    # and it with half of the random-walk noise's variance common to the clot (a clot-wide
+    # velocity error the target takes back), alone, seeds 0 and 1
+    Rung("signed_histnoise", HISTNOISE),
+    Rung("histnoise_seeds", HISTNOISE, reuse="signed_histnoise", members=2),
+    Rung("histnoise_guards", HISTNOISE, guards=True, reuse="signed_histnoise"),
+    Rung("histnoise_shared", {**HISTNOISE, "noise_shared": 0.5}),
+    Rung("histshared_seeds", {**HISTNOISE, "noise_shared": 0.5}, reuse="histnoise_shared",
+         members=2),
+    # the rollout's speed error kept step after step: the same with speed noise (the clot's
+    # input motion 1 + N(0, S^2) times the truth, the target unchanged: the model is shown a
+    # clot off its speed and the true next frame), S = 0.03 (seeds 0 and 1) and 0.1, alone
+    # and with the guards; and the history-noise recipe with time scaling (each window's clot
+    # motion played up to 1.5x faster or slower: speeds beyond the data's), alone and guarded
+    Rung("speed03", SPEED03),
+    Rung("speed03_seeds", SPEED03, reuse="speed03", members=2),
+    Rung("speed03_guards", SPEED03, guards=True, reuse="speed03"),
+    Rung("speed10", SPEED10),
+    Rung("speed10_guards", SPEED10, guards=True, reuse="speed10"),
+    Rung("tscale", TSCALE),
+    Rung("tscale_guards", TSCALE, guards=True, reuse="tscale"),
+)
