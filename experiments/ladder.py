@@ -60,7 +60,8 @@ training range):
   per frame), and for a single model with a history its history gain
   (``thrombojax.eval.drift``: the share of a change of the history's acceleration it carries
   over, mean over the rollout's frames) and for every single model its speed carry (the share
-  of a 5 % clot-wide speed error in its inputs that it keeps: 1 for constant velocity).
+  of a 5 % clot-wide speed error in its inputs that it keeps: 1 for constant velocity) and
+  direction carry (the share of a 0.1 rad sideways turn of its input motion it keeps).
 
 Resumable: a rung whose ``result.json`` exists is skipped; a rung whose training was killed
 resumes from its last checkpoint. Writes ``table.md``, ``ladder.json`` and
@@ -83,7 +84,7 @@ import numpy as np
 from thrombojax import study
 from thrombojax.data.augment import subsample_indices
 from thrombojax.data.radius import vessel_radius
-from thrombojax.eval.drift import centroid_speed, history_gain, speed_carry
+from thrombojax.eval.drift import centroid_speed, direction_carry, history_gain, speed_carry
 from thrombojax.eval.metrics import (
     centroid_error,
     fit_vessel_wall,
@@ -231,6 +232,9 @@ def _evaluate(runs: list[pathlib.Path], data: str, guards: bool,
             extra["speed_carry"] = float(speed_carry(
                 step, trained.params, trained.stats, pos, nt, np.arange(skip, pos.shape[0] - 1),
                 delta=0.05).mean())
+            extra["direction_carry"] = float(direction_carry(
+                step, trained.params, trained.stats, pos, nt, np.arange(skip, pos.shape[0] - 1),
+                angle=0.1).mean())
         per_sim[name] = {
             "mse1_all": float(m1.mean()) / r**2, "mse1_all_cv": float(c1.mean()) / r**2,
             "mse1_phase": float(m1[phase].mean()) / r**2,

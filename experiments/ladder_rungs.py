@@ -33,6 +33,11 @@ HISTNOISE = {**SIGNED, "history_noise": 0.02}
 SPEED03, SPEED10 = {**HISTNOISE, "speed_noise": 0.03}, {**HISTNOISE, "speed_noise": 0.1}
 # it with time scaling (each window played up to 1.5x faster or slower)
 TSCALE = {**HISTNOISE, "time_scale": 1.5}
+# it with direction noise (the clot's input motion turned by a rotation of N(0, 0.1^2) rad per
+# axis, the target unchanged), and that with the speed noise 0.1 as well (0.1 and 0.3 rad)
+DIRECTION, DIRSPEED = ({**HISTNOISE, "direction_noise": 0.1},
+                       {**SPEED10, "direction_noise": 0.1})
+DIRSPEED3 = {**SPEED10, "direction_noise": 0.3}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -117,4 +122,14 @@ RUNGS: tuple[Rung, ...] = (
     Rung("speed10_guards", SPEED10, guards=True, reuse="speed10"),
     Rung("tscale", TSCALE),
     Rung("tscale_guards", TSCALE, guards=True, reuse="tscale"),
+    # a rollout's clot drifts off the true track and the step speeds up a clot that comes in
+    # off its path: the same with direction noise (the clot's input motion turned, the target
+    # unchanged), alone and guarded, and with the speed noise 0.1 as well (seeds 0 and 1), and
+    # with three times the direction noise
+    Rung("direction10", DIRECTION),
+    Rung("direction10_guards", DIRECTION, guards=True, reuse="direction10"),
+    Rung("dirspeed", DIRSPEED),
+    Rung("dirspeed_guards", DIRSPEED, guards=True, reuse="dirspeed"),
+    Rung("dirspeed_seeds", DIRSPEED, reuse="dirspeed", members=2),
+    Rung("dirspeed3", DIRSPEED3),
 )

@@ -76,6 +76,10 @@ def _add_train(sub) -> None:
                    "input motion scaled by 1 + N(0, this^2), one draw per window (s_t and the "
                    "target unchanged): the model is shown a clot that moves too fast or too "
                    "slow and the true next frame (default 0: off)")
+    p.add_argument("--direction-noise", type=NN_FLOAT, help="direction noise, radians: the "
+                   "clot's input motion turned by one random rotation per window (angle vector "
+                   "N(0, this^2) per axis; s_t and the target unchanged): the model is shown a "
+                   "clot coming in from off its path and the true next frame (default 0: off)")
     p.add_argument("--time-scale", type=float, help="time-scaling augmentation, the largest "
                    "factor F >= 1: each window's clot motion played F^u times as fast, u ~ "
                    "U(-1, 1) (velocities k, accelerations k^2 times), so a dataset at another "
@@ -134,7 +138,7 @@ def _run_train(args) -> int:
              "n_test", "tiny", "rollout_steps", "noise_gamma", "pushforward_steps",
              "curriculum_epochs", "frame", "wall_features", "history", "noise_walk",
              "stop_history_gradient", "noise_shared", "wall_noise", "wall_signed",
-             "history_noise", "speed_noise", "time_scale")
+             "history_noise", "speed_noise", "direction_noise", "time_scale")
     overrides = {k: getattr(args, k) for k in names if getattr(args, k) is not None}
     from thrombojax.train.recipes import DEFAULT_RECIPE, recipe
 

@@ -20,6 +20,12 @@ leaves the vessel, while the rollout speeds up a little every step. Two measures
   next motion keeps. Constant velocity keeps all of it (1); a step that keeps all of it cannot
   pull a rollout's speed back, and any bias drifts the speed; below 1 the step brings the speed
   back toward the data's (:func:`thrombojax.train.noise.add_speed_noise` trains that).
+- :func:`direction_carry`: of a turn of the clot's input motion (every frame before s_t moved so
+  the motion into s_t is rotated by a small angle about an axis across it, the clot now coming
+  in across its path), the share of that sideways motion the step's predicted next motion
+  keeps. Constant velocity keeps all of it (1); a rollout's clot that drifts off the true track
+  keeps drifting with a step near 1 (:func:`thrombojax.train.noise.add_direction_noise` trains
+  the pull-back).
 
 Both are teacher-forced or post-hoc measures on host arrays; nothing here is compiled for a
 rollout.
@@ -35,7 +41,7 @@ from thrombojax.eval.single_step import batched_next
 from thrombojax.simulator.step import LearnedStep
 from thrombojax.types import TargetStats, clot_mask
 
-__all__ = ["centroid_speed", "history_gain", "speed_carry"]
+__all__ = ["centroid_speed", "history_gain", "speed_carry", "direction_carry"]
 
 
 def centroid_speed(trajectory: np.ndarray, clot_mask: np.ndarray) -> np.ndarray:
@@ -138,6 +144,67 @@ def speed_carry(
 
     return _per_frame(step, params, stats, positions, node_type, mask, frames, "speed carry",
                       move, lambda shift, along, speed: float(shift @ along) / (delta * speed))
+
+
+def direction_carry(
+    step: LearnedStep,
+    params: dict,
+    stats: TargetStats,
+    positions: np.ndarray,
+    node_type: np.ndarray,
+    frames: np.ndarray,
+    *,
+    angle: float,
+    mask: np.ndarray | None = None,
+) -> np.ndarray:
+    """Share of a sideways turn of the clot's input motion that a step keeps, per frame.
+
+    At each frame ``t`` and for each of two axes across the clot's motion (``u`` its centroid's
+    direction s_t - s_{t-1}; the axes ``a`` and ``u x a``): the clot nodes of every frame before
+    s_t are moved to ``s_t - R (s_t - s_k)``, ``R`` the rotation by ``angle`` about the axis
+    (the clot comes into s_t moving sideways at ``speed sin(angle)``, s_t as it is); the share
+    is how far the predicted next centroid moves along that sideways direction, over
+    ``speed sin(angle)``; the two axes' shares are averaged. 1: the sideways motion is kept
+    (constant velocity); 0: the step predicts the same next motion as from the true inputs.
+
+    Args:
+        step: a learned step. params, stats: its variables and statistics.
+        positions: ``[T, n_nodes, 3]`` a trajectory (scaled coordinates). node_type: ``[n_nodes]``.
+        frames: the frames ``t`` (each ``>= step.history`` and ``< T``) to measure at.
+        angle: the turn, radians (> 0 and < pi / 2; small, e.g. 0.1).
+        mask: ``[n_nodes]`` real nodes (default: all).
+    Returns:
+        ``[len(frames)]`` shares.
+    Raises:
+        ConfigError: a step with a cell grid, a bad ``angle`` or a clot at rest at a frame.
+    """
+    step.require_dense("direction carry")
+    if not 0.0 < angle < np.pi / 2:
+        raise ConfigError(f"direction carry: angle must be in (0, pi/2) radians, got {angle!r}")
+
+    def across(along: np.ndarray, which: int) -> np.ndarray:
+        axis = np.cross(along, np.eye(3)[np.argmin(np.abs(along))])
+        axis /= np.linalg.norm(axis)
+        return axis if which == 0 else np.cross(along, axis)
+
+    def turned(which):
+        def move(prev, cur, clot, along, speed):
+            axis = across(along, which)
+            k = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]],
+                          [-axis[1], axis[0], 0.0]])
+            rot = np.eye(3) + np.sin(angle) * k + (1.0 - np.cos(angle)) * (k @ k)
+            moved = prev.copy()
+            moved[:, clot] = cur[None, clot] - (cur[None, clot] - prev[:, clot]) @ rot.T
+            return moved
+
+        def share(shift, along, speed):
+            side = np.cross(across(along, which), along)  # where R turns the motion
+            return float(shift @ side) / (speed * np.sin(angle))
+
+        return _per_frame(step, params, stats, positions, node_type, mask, frames,
+                          "direction carry", move, share)
+
+    return 0.5 * (turned(0) + turned(1))
 
 
 def _per_frame(step, params, stats, positions, node_type, mask, frames, what, move, share):

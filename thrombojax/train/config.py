@@ -68,6 +68,10 @@ class TrainConfig:
             by ``1 + e``, ``e ~ N(0, speed_noise^2)`` per window, s_t and the target unchanged,
             so the model is shown a clot off its speed and the true next frame (0: off;
             :func:`thrombojax.train.noise.add_speed_noise`).
+        direction_noise: direction noise, radians: the clot's input motion turned by one
+            rotation per window, angle vector ``N(0, direction_noise^2 I)``, s_t and the target
+            unchanged, so the model is shown a clot coming in from off its path and the true
+            next frame (0: off; :func:`thrombojax.train.noise.add_direction_noise`).
         time_scale: time-scaling augmentation, the largest factor ``F`` (>= 1): each
             window's clot motion played ``k = F^u`` times as fast, ``u ~ U(-1, 1)`` (velocities
             ``k``, accelerations ``k^2`` times), so a dataset at another frame rate or a clot
@@ -124,6 +128,7 @@ class TrainConfig:
     wall_noise: float = 0.0
     history_noise: float = 0.0
     speed_noise: float = 0.0
+    direction_noise: float = 0.0
     time_scale: float = 1.0
     seed: int = 0
     split_seed: int = 0

@@ -259,6 +259,7 @@ def train(
                                              wall_noise=cfg.wall_noise * radius,
                                              history_noise=cfg.history_noise * radius,
                                              speed_noise=cfg.speed_noise,
+                                             direction_noise=cfg.direction_noise,
                                              time_scale=cfg.time_scale, k=k,
                                              pushforward=cfg.pushforward_steps)
         return train_steps[k]

@@ -52,6 +52,22 @@ yet its rollouts speed up about half as much, on BendVessel and on a longer vess
 is 40 % faster than any training clot
 (``experiments/results/ladder_budget/bendvessel_speed/README.md``).
 
+Direction noise (:func:`add_direction_noise`): the clot's input motion is turned by one random
+rotation per window, angle vector ``w ~ N(0, std^2 I)`` (radians): every frame before s_t is
+moved to ``s_t - R(w) (s_t - s_k)``, so the clot comes into s_t from a slightly wrong direction
+(moving across the vessel) while s_t and the target stay: the model is shown a clot whose
+recent motion points off its path and the true next frame, which follows the vessel. Why: a
+rollout's clot first drifts sideways off the true track at the right speed, and the step then
+speeds up a clot whose input motion is the rollout's own; the true clot placed on the rollout's
+track with the true motion is not sped up
+(``experiments/results/ladder_budget/bendvessel_speed/README.md``): the step answers to the
+direction of its input motion, which no noise above perturbs clot-wide. Measured (the ladder's
+MeshGraphNet, 25 epochs, ``experiments/results/ladder_budget/bendvessel_direction/``): a tiny
+model learns the pull-back (``tests/test_direction_noise.py``), the ladder's barely (direction
+carry 1.015 without, 0.993 with 0.1 rad); with speed noise 0.1 its seed-0 rollout is the best
+model alone so far (0.29x constant velocity), its seed-1 rollout among the worst (1.80x), and
+at 0.3 rad its training loss does not fall. Not a default.
+
 Time scaling (:func:`time_scale_window`, an augmentation rather than a noise): the window's clot
 motion is played ``k`` times as fast, ``k = F^u``, ``u ~ U(-1, 1)``: every velocity becomes
 ``k v_t + k^2 (v_j - v_t)`` (so the current velocity ``k v_t`` and every acceleration ``k^2``
@@ -71,7 +87,7 @@ from thrombojax.graph.wall_nodes import local_wall_plane
 from thrombojax.types import clot_mask
 
 __all__ = ["add_training_noise", "add_wall_noise", "add_history_noise", "add_speed_noise",
-           "time_scale_window"]
+           "add_direction_noise", "rotation_matrix", "time_scale_window"]
 
 
 def add_training_noise(
@@ -259,6 +275,54 @@ def add_speed_noise(
     scaled = now[None] - (1.0 + e) * (now[None] - before)
     moving = clot_mask(node_type, mask)[None, :, None]
     return frames.at[:current].set(jnp.where(moving, scaled, before))
+
+
+def rotation_matrix(w: jax.Array) -> jax.Array:
+    """``[3, 3]`` rotation by the angle ``|w|`` (radians) about the axis ``w / |w|`` (Rodrigues;
+    the identity for ``w = 0``, with finite gradients there)."""
+    theta2 = jnp.sum(w * w)
+    small = theta2 < 1e-12
+    theta = jnp.sqrt(jnp.where(small, 1.0, theta2))
+    a = jnp.where(small, 1.0 - theta2 / 6.0, jnp.sin(theta) / theta)
+    b = jnp.where(small, 0.5 - theta2 / 24.0, (1.0 - jnp.cos(theta)) / (theta * theta))
+    k = jnp.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]], w.dtype)
+    return jnp.eye(3, dtype=w.dtype) + a * k + b * (k @ k)
+
+
+def add_direction_noise(
+    key: jax.Array,
+    frames: jax.Array,
+    node_type: jax.Array,
+    mask: jax.Array,
+    *,
+    std: float,
+    current: int,
+) -> jax.Array:
+    """Turn the clot's input motion by one random rotation (module docstring).
+
+    Args:
+        key: PRNG key.
+        frames: ``[W, n_nodes, 3]`` the window, scaled coordinates; ``frames[current]`` is s_t.
+        node_type: ``[n_nodes]`` NodeType values. mask: ``[n_nodes]`` real-node mask.
+        std: standard deviation per axis of the rotation's angle vector, radians (0 returns
+            ``frames`` unchanged).
+        current: index of s_t in the window (the step's ``history``, >= 1).
+    Returns:
+        ``[W, n_nodes, 3]``: the clot nodes of frames ``0 .. current - 1`` at
+        ``s_t - R (s_t - s_k)``, ``R`` the rotation by ``w ~ N(0, std^2 I)``; s_t, the later
+        frames and every other node as given.
+    """
+    if _off(std, "direction noise"):
+        return frames
+    if current < 1:
+        raise ValueError(f"direction noise needs s_t at index >= 1 of the window, "
+                         f"got {current!r}")
+    rot = rotation_matrix(std * jax.random.normal(key, (3,), frames.dtype))
+    now = frames[current]
+    before = frames[:current]
+    turned = now[None] - (now[None] - before) @ rot.T
+    moving = clot_mask(node_type, mask)[None, :, None]
+    return frames.at[:current].set(jnp.where(moving, turned, before))
 
 
 def time_scale_window(

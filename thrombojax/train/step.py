@@ -47,6 +47,7 @@ from thrombojax.simulator.flat import FlatStep, flat_batch_ok
 from thrombojax.simulator.step import LearnedStep, make_step
 from thrombojax.train.loss import flat_window_loss_terms, window_loss_terms
 from thrombojax.train.noise import (
+    add_direction_noise,
     add_history_noise,
     add_speed_noise,
     add_training_noise,
@@ -112,6 +113,7 @@ def batch_loss(
     wall_noise: float = 0.0,
     history_noise: float = 0.0,
     speed_noise: float = 0.0,
+    direction_noise: float = 0.0,
     time_scale: float = 1.0,
     k: int = 1,
     pushforward: int = 0,
@@ -135,6 +137,9 @@ def batch_loss(
             frames before s_{t-1} (:func:`thrombojax.train.noise.add_history_noise`; 0: off).
         speed_noise: standard deviation of the factor ``1 + e`` the clot's input motion is
             scaled by (:func:`thrombojax.train.noise.add_speed_noise`; 0: off).
+        direction_noise: standard deviation per axis (radians) of the rotation the clot's
+            input motion is turned by (:func:`thrombojax.train.noise.add_direction_noise`;
+            0: off).
         time_scale: largest factor the window's clot motion is played faster or slower by
             (:func:`thrombojax.train.noise.time_scale_window`; 1: off).
         k: steps of the unrolled loss (1: the single-step loss).
@@ -155,7 +160,7 @@ def batch_loss(
                                 noise_gamma=noise_gamma, noise_walk=noise_walk,
                                 noise_shared=noise_shared, wall_noise=wall_noise,
                                 history_noise=history_noise, speed_noise=speed_noise,
-                                time_scale=time_scale)
+                                direction_noise=direction_noise, time_scale=time_scale)
 
     def one(frames, node_type, mask, key):
         model_key = None
@@ -185,10 +190,11 @@ def batch_loss(
 
 
 def _corrupt(key, frames, node_type, mask, *, current, noise_std, noise_gamma, noise_walk,
-             noise_shared, wall_noise, history_noise, speed_noise, time_scale):
+             noise_shared, wall_noise, history_noise, speed_noise, direction_noise,
+             time_scale):
     """One training window with its input noise (:mod:`thrombojax.train.noise`): the time
-    scaling first from ``fold_in(key, 4)``, the speed noise (on the clean motion) from
-    ``fold_in(key, 3)``, then the Gaussian or random-walk
+    scaling first from ``fold_in(key, 4)``, the speed and direction noise (on the clean motion)
+    from ``fold_in(key, 3)`` and ``fold_in(key, 5)``, then the Gaussian or random-walk
     noise from ``key``, the wall noise from ``fold_in(key, 1)`` and the history noise from
     ``fold_in(key, 2)`` (so turning any on leaves the other draws of a seed unchanged)."""
     if time_scale != 1.0:
@@ -197,6 +203,9 @@ def _corrupt(key, frames, node_type, mask, *, current, noise_std, noise_gamma, n
     if speed_noise > 0:
         frames = add_speed_noise(jax.random.fold_in(key, 3), frames, node_type, mask,
                                  std=speed_noise, current=current)
+    if direction_noise > 0:
+        frames = add_direction_noise(jax.random.fold_in(key, 5), frames, node_type, mask,
+                                     std=direction_noise, current=current)
     if noise_std > 0:
         frames = add_training_noise(key, frames, node_type, mask, std=noise_std,
                                     gamma=noise_gamma, current=current, walk=noise_walk,
@@ -240,6 +249,7 @@ def make_train_step(
     wall_noise: float = 0.0,
     history_noise: float = 0.0,
     speed_noise: float = 0.0,
+    direction_noise: float = 0.0,
     time_scale: float = 1.0,
     k: int = 1,
     pushforward: int = 0,
@@ -253,7 +263,8 @@ def make_train_step(
         tx: the optimiser.
         stats: target statistics (closed over, constants of the compiled step).
         noise_std, noise_gamma, noise_walk, noise_shared, wall_noise, history_noise,
-            speed_noise, time_scale: training noise and time scaling (:func:`batch_loss`).
+            speed_noise, direction_noise, time_scale: training noise and time scaling
+            (:func:`batch_loss`).
         k: steps of the unrolled loss (1: single step).
         pushforward: steps applied first without gradients (push-forward training).
         donate: donate the old state's buffers to the new one.
@@ -271,7 +282,7 @@ def make_train_step(
                 noise_std=noise_std, noise_gamma=noise_gamma, noise_walk=noise_walk,
                 noise_shared=noise_shared, wall_noise=wall_noise,
                 history_noise=history_noise, speed_noise=speed_noise,
-                time_scale=time_scale, k=k,
+                direction_noise=direction_noise, time_scale=time_scale, k=k,
                 pushforward=pushforward,
                 flat_batch=flat_batch,
             )
