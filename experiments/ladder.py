@@ -43,7 +43,12 @@ clot off its speed; ``thrombojax.train.noise.add_speed_noise``) of 3 % and 10 %,
 (``speed03_guards``, ``speed10_guards``); and it with time scaling (``time_scale`` 1.5: each
 window's clot motion played up to 1.5 times faster or slower, so speeds beyond the data's are
 trained; ``thrombojax.train.noise.time_scale_window``), alone and guarded (``tscale``,
-``tscale_guards``). ``--transfer DATA`` also rolls every rung out on all simulations of another
+``tscale_guards``); and it with direction noise (``direction_noise`` 0.1 rad: the clot's input
+motion turned by one random rotation, the target unchanged, so the model is shown a clot coming
+in across its path; ``thrombojax.train.noise.add_direction_noise``), alone and guarded
+(``direction10``, ``direction10_guards``), with the speed noise 0.1 as well (``dirspeed``,
+``dirspeed_guards``, two seeds ``dirspeed_seeds``) and with 0.3 rad (``dirspeed3``).
+``--transfer DATA`` also rolls every rung out on all simulations of another
 dataset (train on one, evaluate on the other). Every rung trains the same small MeshGraphNet
 (``--size study``: the study's, for an accelerator) for the same wall-clock budget (the epoch
 count is calibrated on this machine by timing one epoch), or for ``--epochs`` epochs, then is
