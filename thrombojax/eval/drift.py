@@ -39,6 +39,7 @@ import numpy as np
 from thrombojax.errors import ConfigError
 from thrombojax.eval.single_step import batched_next
 from thrombojax.simulator.step import LearnedStep
+from thrombojax.train.noise import rotation_matrix
 from thrombojax.types import TargetStats, clot_mask
 
 __all__ = ["centroid_speed", "history_gain", "speed_carry", "direction_carry"]
@@ -189,10 +190,8 @@ def direction_carry(
 
     def turned(which):
         def move(prev, cur, clot, along, speed):
-            axis = across(along, which)
-            k = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]],
-                          [-axis[1], axis[0], 0.0]])
-            rot = np.eye(3) + np.sin(angle) * k + (1.0 - np.cos(angle)) * (k @ k)
+            rot = np.asarray(rotation_matrix(jnp.asarray(angle * across(along, which))),
+                             np.float64)
             moved = prev.copy()
             moved[:, clot] = cur[None, clot] - (cur[None, clot] - prev[:, clot]) @ rot.T
             return moved

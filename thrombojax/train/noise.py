@@ -267,14 +267,21 @@ def add_speed_noise(
     """
     if _off(std, "speed noise"):
         return frames
-    if current < 1:
-        raise ValueError(f"speed noise needs s_t at index >= 1 of the window, got {current!r}")
     e = std * jax.random.normal(key, (), frames.dtype)
+    return _remap_motion(frames, node_type, mask, current, "speed noise",
+                         lambda motion: (1.0 + e) * motion)
+
+
+def _remap_motion(frames, node_type, mask, current, what, remap):
+    """The clot nodes of frames ``0 .. current - 1`` moved to ``s_t - remap(s_t - s_k)``; s_t,
+    the later frames and every other node as given (``current < 1`` raises ValueError)."""
+    if current < 1:
+        raise ValueError(f"{what} needs s_t at index >= 1 of the window, got {current!r}")
     now = frames[current]
     before = frames[:current]
-    scaled = now[None] - (1.0 + e) * (now[None] - before)
+    moved = now[None] - remap(now[None] - before)
     moving = clot_mask(node_type, mask)[None, :, None]
-    return frames.at[:current].set(jnp.where(moving, scaled, before))
+    return frames.at[:current].set(jnp.where(moving, moved, before))
 
 
 def rotation_matrix(w: jax.Array) -> jax.Array:
@@ -314,15 +321,9 @@ def add_direction_noise(
     """
     if _off(std, "direction noise"):
         return frames
-    if current < 1:
-        raise ValueError(f"direction noise needs s_t at index >= 1 of the window, "
-                         f"got {current!r}")
     rot = rotation_matrix(std * jax.random.normal(key, (3,), frames.dtype))
-    now = frames[current]
-    before = frames[:current]
-    turned = now[None] - (now[None] - before) @ rot.T
-    moving = clot_mask(node_type, mask)[None, :, None]
-    return frames.at[:current].set(jnp.where(moving, turned, before))
+    return _remap_motion(frames, node_type, mask, current, "direction noise",
+                         lambda motion: motion @ rot.T)
 
 
 def time_scale_window(
