@@ -65,8 +65,8 @@ direction of its input motion, which no noise above perturbs clot-wide. Measured
 MeshGraphNet, 25 epochs, ``experiments/results/ladder_budget/bendvessel_direction/``): a tiny
 model learns the pull-back (``tests/test_direction_noise.py``), the ladder's barely (direction
 carry 1.015 without, 0.993 with 0.1 rad); with speed noise 0.1 its seed-0 rollout is the best
-model alone so far (0.29x constant velocity), its seed-1 rollout among the worst (1.80x), and
-at 0.3 rad its training loss does not fall. Not a default.
+model alone so far (0.29x constant velocity), seed 2 0.41x, its seed-1 rollout among the worst
+(1.80x), and at 0.3 rad its training loss does not fall. Not a default.
 
 Time scaling (:func:`time_scale_window`, an augmentation rather than a noise): the window's clot
 motion is played ``k`` times as fast, ``k = F^u``, ``u ~ U(-1, 1)``: every velocity becomes
