@@ -15,18 +15,14 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from dataset_factory import ring_clot_window, train_tiny_step, window_batch
-from test_speed_noise import STATS, _tiny_step
+from dataset_factory import train_tiny_step
+from test_speed_noise import STATS, _batch, _tiny_step, _window
 
 from thrombojax.errors import ConfigError
 from thrombojax.eval.drift import direction_carry
 from thrombojax.train.config import TrainConfig
 from thrombojax.train.noise import add_direction_noise, rotation_matrix
 from thrombojax.types import NodeType
-
-
-def _window(speed: float, frames: int = 4, seed: int = 0):
-    return ring_clot_window(speed, shear=0.01, frames=frames, seed=seed)
 
 
 def test_rotation_matrix_turns_about_its_axis_and_is_the_identity_at_zero():
@@ -73,11 +69,6 @@ def test_direction_noise_off_and_bad_values():
     args = build_parser().parse_args(["train", "--dataset", "d.h5", "--model", "mgn", "--out",
                                       "o", "--direction-noise", "0.1"])
     assert args.direction_noise == 0.1
-
-
-def _batch():
-    """Clots that slide along the ring's axis (x) at 0.04-0.06 per frame, one window each."""
-    return window_batch([_window(v, seed=i) for i, v in enumerate((0.04, 0.05, 0.06))])
 
 
 def test_the_training_loss_uses_the_direction_noise():
