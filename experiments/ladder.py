@@ -47,7 +47,12 @@ trained; ``thrombojax.train.noise.time_scale_window``), alone and guarded (``tsc
 motion turned by one random rotation, the target unchanged, so the model is shown a clot coming
 in across its path; ``thrombojax.train.noise.add_direction_noise``), alone and guarded
 (``direction10``, ``direction10_guards``), with the speed noise 0.1 as well (``dirspeed``,
-``dirspeed_guards``, two seeds ``dirspeed_seeds``) and with 0.3 rad (``dirspeed3``).
+``dirspeed_guards``, two seeds ``dirspeed_seeds``) and with 0.3 rad (``dirspeed3``); and which
+checkpoint is kept: ``dirspeed`` picking its best checkpoint by a rollout on the validation
+simulation each epoch (``select_by`` ``rollout``: ``dirspeed_rollout``, guarded
+``dirspeed_rollout_guards``, four seeds ``rollout_seeds``), the last epoch's checkpoint of the
+same trainings (a rung's ``checkpoint`` ``last``: ``dirspeed_last``, ``dirspeed_last_guards``,
+``last_seeds``) and of the history-noise recipe (``histnoise_last``, ``histnoise_last_seeds``).
 ``--transfer DATA`` also rolls every rung out on all simulations of another
 dataset (train on one, evaluate on the other). Every rung trains the same small MeshGraphNet
 (``--size study``: the study's, for an accelerator) for the same wall-clock budget (the epoch
@@ -185,10 +190,12 @@ def _member_runs(rung: Rung, out: pathlib.Path, data: str, split: dict,
 
 
 def _evaluate(runs: list[pathlib.Path], data: str, guards: bool,
-              n_nodes: int | None = None, names: list[str] | None = None) -> dict:
-    """Roll the runs (one model, or an ensemble) out on the simulations ``names`` of ``data``
-    (default: the first run's test split) and measure them against constant velocity."""
-    members = [load_trained(run) for run in runs]
+              n_nodes: int | None = None, names: list[str] | None = None,
+              which: str = "best") -> dict:
+    """Roll the runs (one model, or an ensemble; each run's ``which`` checkpoint) out on the
+    simulations ``names`` of ``data`` (default: the first run's test split) and measure them
+    against constant velocity."""
+    members = [load_trained(run, which=which) for run in runs]
     trained = members[0]
     ds = open_dataset(data)
     skip = max(study.skip_frames(ds), 1)
@@ -270,11 +277,11 @@ def _evaluate(runs: list[pathlib.Path], data: str, guards: bool,
 
 
 def _members_alone(runs: list[pathlib.Path], data: str, guards: bool,
-                   n_nodes: int | None) -> list[dict]:
+                   n_nodes: int | None, which: str = "best") -> list[dict]:
     """Each member of an ensemble evaluated alone: how much one recipe varies with its seed."""
     out = []
     for run in runs:
-        mean = _evaluate([run], data, guards, n_nodes)["mean"]
+        mean = _evaluate([run], data, guards, n_nodes, which=which)["mean"]
         seed = json.loads((run / "config.json").read_text())["train"]["seed"]
         out.append({"seed": seed, "mse_full_ratio": mean["mse_full"] / mean["mse_full_cv"],
                     "final_centroid_r": mean["final_centroid_r"],
@@ -329,7 +336,7 @@ def main(argv: list[str] | None = None) -> int:
                 _train_rung(rung, args.dataset, folder, split, args.minutes, args.max_epochs,
                             args.epochs, args.nodes, common)
             runs = _member_runs(rung, out, args.dataset, split, args.nodes, common)
-            res = _evaluate(runs, args.dataset, rung.guards, args.nodes)
+            res = _evaluate(runs, args.dataset, rung.guards, args.nodes, which=rung.checkpoint)
             res.update(rung=dataclasses.asdict(rung) | {"train": {k: str(v) for k, v in
                                                                    rung.train.items()}},
                        seconds=time.perf_counter() - t)
@@ -337,7 +344,8 @@ def main(argv: list[str] | None = None) -> int:
                   f"{res['mean']['mse_full'] / res['mean']['mse_full_cv']:.2f}", flush=True)
         if rung.members > 1 and "members_alone" not in res:  # also for results made before it
             runs = _member_runs(rung, out, args.dataset, split, args.nodes, common)
-            res["members_alone"] = _members_alone(runs, args.dataset, rung.guards, args.nodes)
+            res["members_alone"] = _members_alone(runs, args.dataset, rung.guards, args.nodes,
+                                                  rung.checkpoint)
         elif done.is_file():
             results[rung.name] = res
             continue
@@ -364,7 +372,8 @@ def _transfer(other: pathlib.Path, results: dict, out: pathlib.Path, args, split
             moved[name] = json.loads(path.read_text())
             continue
         runs = _member_runs(rungs[name], out, args.dataset, split, args.nodes, common)
-        moved[name] = _evaluate(runs, str(other), rungs[name].guards, args.nodes, names)
+        moved[name] = _evaluate(runs, str(other), rungs[name].guards, args.nodes, names,
+                                rungs[name].checkpoint)
         atomic_write_text(path, json.dumps(moved[name], indent=1))
     folder = out / f"transfer_{other.stem}"
     folder.mkdir(exist_ok=True)

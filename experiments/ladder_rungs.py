@@ -38,6 +38,8 @@ TSCALE = {**HISTNOISE, "time_scale": 1.5}
 DIRECTION, DIRSPEED = ({**HISTNOISE, "direction_noise": 0.1},
                        {**SPEED10, "direction_noise": 0.1})
 DIRSPEED3 = {**SPEED10, "direction_noise": 0.3}
+# it with the best checkpoint picked by a rollout on the validation simulation each epoch
+DIRSPEED_ROLLOUT = {**DIRSPEED, "select_by": "rollout"}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -49,6 +51,7 @@ class Rung:
     guards: bool = False
     reuse: str | None = None  # evaluate another rung's trained model
     members: int = 1  # > 1: a deep ensemble; member 0 is ``reuse``'s model, the others seeds 1..
+    checkpoint: str = "best"  # which checkpoint of each run is evaluated ("best" or "last")
 
 
 RUNGS: tuple[Rung, ...] = (
@@ -132,4 +135,18 @@ RUNGS: tuple[Rung, ...] = (
     Rung("dirspeed_guards", DIRSPEED, guards=True, reuse="dirspeed"),
     Rung("dirspeed_seeds", DIRSPEED, reuse="dirspeed", members=2),
     Rung("dirspeed3", DIRSPEED3),
+    # which checkpoint: the lowest one-step validation MSE (the rungs above) picked epoch 5 of
+    # 25 for dirspeed's seed 1; the same recipe picking by the validation rollout, and the last
+    # epoch's checkpoint of the same training (what --select-by last keeps), alone and guarded,
+    # seeds 0-3 (members alone and as an ensemble); the history-noise recipe's last checkpoints
+    Rung("dirspeed_rollout", DIRSPEED_ROLLOUT),
+    Rung("dirspeed_rollout_guards", DIRSPEED_ROLLOUT, guards=True, reuse="dirspeed_rollout"),
+    Rung("dirspeed_last", DIRSPEED_ROLLOUT, reuse="dirspeed_rollout", checkpoint="last"),
+    Rung("dirspeed_last_guards", DIRSPEED_ROLLOUT, guards=True, reuse="dirspeed_rollout",
+         checkpoint="last"),
+    Rung("rollout_seeds", DIRSPEED_ROLLOUT, reuse="dirspeed_rollout", members=4),
+    Rung("last_seeds", DIRSPEED_ROLLOUT, reuse="dirspeed_rollout", members=4, checkpoint="last"),
+    Rung("histnoise_last", HISTNOISE, reuse="signed_histnoise", checkpoint="last"),
+    Rung("histnoise_last_seeds", HISTNOISE, reuse="signed_histnoise", members=2,
+         checkpoint="last"),
 )

@@ -94,15 +94,20 @@ def test_members_alone_reports_every_seed(tmp_path, monkeypatch):
         runs.append((run, ratio))
     ratios = dict((str(r), x) for r, x in runs)
 
-    def fake_evaluate(rs, data, guards, n_nodes):
+    asked = []
+
+    def fake_evaluate(rs, data, guards, n_nodes, which="best"):
         (run,) = rs
+        asked.append(which)
         x = ratios[str(run)]
         return {"mean": {"mse_full": x, "mse_full_cv": 1.0, "final_centroid_r": 10 * x,
                          "mse1_phase": 0.5, "mse1_phase_cv": 1.0, "max_outside": 0.0}}
 
     monkeypatch.setattr(ladder, "_evaluate", fake_evaluate)
     alone = ladder._members_alone([r for r, _ in runs], "d.h5", True, None)
-    assert [m["seed"] for m in alone] == [0, 1]
+    assert [m["seed"] for m in alone] == [0, 1] and asked == ["best", "best"]
+    ladder._members_alone([r for r, _ in runs], "d.h5", True, None, "last")
+    assert asked[2:] == ["last", "last"]  # a rung's checkpoint="last" reaches every member
     assert [m["mse_full_ratio"] for m in alone] == [0.5, 3.0]
     report = sys.modules["ladder_report"]  # imported by the ladder script
     line = report.seed_lines({"ens": {"members_alone": alone}, "single": {}})
@@ -147,7 +152,7 @@ def test_transfer_evaluates_every_rung_on_every_simulation_of_the_other_dataset(
     def fake_member_runs(rung, out_, data, split, n_nodes, common=None):
         return [out_ / rung.name / "run"] * rung.members
 
-    def fake_evaluate(runs, data, guards, n_nodes=None, names=None):
+    def fake_evaluate(runs, data, guards, n_nodes=None, names=None, which="best"):
         calls.append((len(runs), data, guards, names))
         return {"mean": {"mse1_all": 1.0, "mse1_all_cv": 2.0, "mse1_phase": 1.0,
                          "mse1_phase_cv": 2.0, "mse10": 0.1, "mse_full": 0.5,

@@ -120,6 +120,12 @@ def _add_train(sub) -> None:
                    "--wall-features: the features are the signed distance to the wall "
                    "(positive outside) and its outward normal, which tell a node that crossed "
                    "the wall from one inside it")
+    p.add_argument("--select-by", choices=("mse", "rollout", "last"), help="what picks the "
+                   "best checkpoint: 'mse' (the study's: the lowest one-step validation MSE), "
+                   "'rollout' (each epoch also rolls the model out alone on every validation "
+                   "simulation, logged as val_rollout_* with its ratio to constant velocity; "
+                   "the lowest full-length rollout MSE) or 'last' (the last epoch's, at the end "
+                   "of the learning-rate decay)")
     p.add_argument("--n-val", type=NN_INT, help="validation simulations (default 2)")
     p.add_argument("--n-test", type=NN_INT, help="test simulations, never trained on (default 1)")
     p.add_argument("--tiny", action="store_true", default=None, help="tiny model config")
@@ -138,7 +144,7 @@ def _run_train(args) -> int:
              "n_test", "tiny", "rollout_steps", "noise_gamma", "pushforward_steps",
              "curriculum_epochs", "frame", "wall_features", "history", "noise_walk",
              "stop_history_gradient", "noise_shared", "wall_noise", "wall_signed",
-             "history_noise", "speed_noise", "direction_noise", "time_scale")
+             "history_noise", "speed_noise", "direction_noise", "time_scale", "select_by")
     overrides = {k: getattr(args, k) for k in names if getattr(args, k) is not None}
     from thrombojax.train.recipes import DEFAULT_RECIPE, recipe
 

@@ -8,7 +8,9 @@ Modules: :mod:`~thrombojax.train.config` (the study's knobs), :mod:`~thrombojax.
 (AdamW, warm-up + cosine), :mod:`~thrombojax.train.loss` (masked losses),
 :mod:`~thrombojax.train.noise` (MeshGraphNets training noise), :mod:`~thrombojax.train.step`
 (jitted train / eval steps, data parallelism, multi-host), :mod:`~thrombojax.train.state`
-(state, orbax checkpoints, ``TrainedModel``), :mod:`~thrombojax.train.loop` (epochs, resume).
+(state, orbax checkpoints, ``TrainedModel``), :mod:`~thrombojax.train.loop` (epochs, resume),
+:mod:`~thrombojax.train.validation` (one-step validation, and the validation rollouts that pick
+the checkpoint with ``select_by="rollout"``).
 """
 
 from thrombojax.train.config import TrainConfig

@@ -28,7 +28,11 @@ from thrombojax.errors import ConfigError
 from thrombojax.graph.frame import FRAMES
 from thrombojax.train.checks import check_train_values
 
-__all__ = ["TrainConfig", "RunConfig", "parse_angle", "load_config_file"]
+__all__ = ["TrainConfig", "RunConfig", "SELECT_BY", "parse_angle", "load_config_file"]
+
+SELECT_BY = ("mse", "rollout", "last")
+"""What picks the ``best`` checkpoint: the one-step validation MSE, the validation rollout
+(:mod:`thrombojax.train.validation`), or the last epoch."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -108,6 +112,11 @@ class TrainConfig:
         tiny: start from the model's tiny config (tests, smoke runs).
         model_config: overrides of the model config fields (architecture, graph radius).
         checkpoint_every: also save the last checkpoint every this many steps (0: each epoch).
+        select_by: what picks the ``best`` checkpoint: ``"mse"`` (the lowest one-step
+            validation MSE, the study's), ``"rollout"`` (each epoch also rolls the model out
+            alone on every validation simulation, logged as ``val_rollout_*``; the lowest
+            full-length rollout MSE; :mod:`thrombojax.train.validation`) or ``"last"`` (the
+            last epoch's: the end of the learning-rate decay).
     """
 
     epochs: int = 300
@@ -149,6 +158,7 @@ class TrainConfig:
     tiny: bool = False
     model_config: dict = dataclasses.field(default_factory=dict)
     checkpoint_every: int = 0
+    select_by: str = "mse"
 
     def __post_init__(self) -> None:
         for name in ("train_sims", "val_sims", "test_sims"):
@@ -171,6 +181,9 @@ class TrainConfig:
             raise ConfigError(f"rollout_steps must be >= 1, got {self.rollout_steps}")
         if self.skip_frames < 0:
             raise ConfigError(f"skip_frames must be >= 0, got {self.skip_frames}")
+        if self.select_by not in SELECT_BY:
+            raise ConfigError(f"select_by must be one of {list(SELECT_BY)}, got "
+                              f"{self.select_by!r}")
         if self.frame not in FRAMES:
             raise ConfigError(f"frame must be one of {list(FRAMES)}, got {self.frame!r}")
 

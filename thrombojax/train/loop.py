@@ -9,7 +9,9 @@ state, the key and the step (the position is stored too, for humans and checks),
 
 Per epoch: the mean training loss and MSE, the validation loss and MSE (the study's metric, the
 best checkpoint is the one with the lowest validation MSE; without a validation split, the
-training MSE), the learning rate and the time go to ``metrics.jsonl``. A non-finite loss stops
+training MSE), the learning rate and the time go to ``metrics.jsonl``; with
+``select_by="rollout"`` also the validation rollout (:mod:`thrombojax.train.validation`), whose
+full-length MSE then picks the best checkpoint. A non-finite loss stops
 the run with :class:`TrainingDivergedError`; the last good checkpoint stays on disk.
 
 The host reads a step's metrics one step behind (after dispatching the next step), so it
@@ -77,11 +79,18 @@ from thrombojax.train.step import (
     replicate,
     shard_batch,
 )
+from thrombojax.train.validation import (
+    end_epoch_record,
+    epoch_score,
+    eval_batches,
+    prepare_val_rollouts,
+    progress_postfix,
+    val_rollout_metrics,
+)
 
 __all__ = ["train", "TrainingDivergedError", "plot_losses", "rollout_steps_at"]
 
 _MEMORY_OPTIONS = ("bary_ratio", "batch_size", "nodes_per_sample", "bary_max_neighbors")
-_EVAL_EPOCH = 2**31 - 1  # seed stream of the validation subsets, never a training epoch
 _OVERLAP = True  # read a step's metrics after dispatching the next (False: at once; tests)
 
 
@@ -216,7 +225,7 @@ def train(
     # radii -> scaled; the radius (possibly a geometric estimate) only when it is needed
     radius = (vessel_radius(ds) / float(scaling.scale)
               if cfg.noise_std > 0 or cfg.wall_features > 0 or cfg.wall_noise > 0
-              or cfg.history_noise > 0 else 0.0)
+              or cfg.history_noise > 0 or cfg.select_by == "rollout" else 0.0)
     wall_cutoff = cfg.wall_features * radius
     step_fn = make_step(model, cfg.frame, wall_cutoff, history=cfg.history,
                         stop_history_gradient=cfg.stop_history_gradient,
@@ -265,7 +274,10 @@ def train(
         return train_steps[k]
 
     eval_step = make_eval_step(step_fn, stats, k=cfg.rollout_steps)
-    val_batches = _eval_batches(val_store, budget, batch_size, cfg) if val_store else []
+    val_batches = eval_batches(val_store, budget, batch_size, cfg) if val_store else []
+    val_rollouts = (functools.partial(val_rollout_metrics, stats=stats, radius=radius, sims=(
+        prepare_val_rollouts(ds, split.val, scaling, step_fn, n_nodes=cfg.nodes_per_sample,
+                             seed=cfg.seed))) if cfg.select_by == "rollout" else None)
     state = replicate(state, mesh)
     ckpt = out_dir / "checkpoints"
 
@@ -321,28 +333,30 @@ def train(
                 continue
             metrics = settle(step, epoch, device_metrics)
             if last_of_epoch:
-                record = _end_epoch(epoch, step + 1, acc, val_batches, eval_step, state, mesh,
+                record = end_epoch_record(epoch, step + 1, acc, val_batches, eval_step, state, mesh,
                                     float(schedule(step)), time.perf_counter() - t0)
-                _log(out_dir, record)
                 try:  # never save a checkpoint whose metrics are NaN / infinite
                     check_finite(record, f"{out_dir}: epoch {epoch + 1}")
                 except NonFiniteError as err:
+                    _log(out_dir, record)
                     raise TrainingDivergedError(f"{err}; not saved, the last good checkpoint is "
                                                 f"kept in {ckpt / 'last'}") from err
-                score = record.get("val_mse", record["train_mse"])
+                if val_rollouts is not None:  # a diverged rollout is a result (None), not NaN
+                    record |= val_rollouts(state.params)
+                _log(out_dir, record)
+                score = epoch_score(record, cfg.select_by)
                 acc = np.zeros(3)
-                if score < best:
+                if score < best or math.isinf(best):  # no finite rollout yet: the latest
                     best = score
                     checkpoint("best", epoch + 1, 0)
                 checkpoint("last", epoch + 1, 0)
-                bar.set_postfix(loss=f"{record['train_loss']:.3g}",
-                                val=f"{record.get('val_mse', float('nan')):.3g}")
+                bar.set_postfix(progress_postfix(record))
             elif save:
                 checkpoint("last", epoch, position + 1)
             done(step, metrics)
     bar.close()
     if jax.process_index() == 0:
-        plot_losses(out_dir / "metrics.jsonl", out_dir / "loss.png")
+        plot_losses(out_dir / "metrics.jsonl", out_dir / "loss.png", cfg.select_by)
     return load_trained(out_dir, which="best")
 
 
@@ -352,34 +366,6 @@ def rollout_steps_at(epoch: int, k: int, curriculum_epochs: float) -> int:
     if curriculum_epochs <= 0:
         return k
     return int(max(1, min(k, 1 + math.floor(epoch * k / curriculum_epochs))))
-
-
-def _eval_batches(store, budget: int, batch_size: int, cfg: TrainConfig) -> list:
-    """Validation batches: every window once, in order, no augmentation, with a fixed node subset
-    (seeded by ``(seed, _EVAL_EPOCH, batch)``, the same every epoch)."""
-    plan = epoch_plan(len(store), bary_ratio=0.0, batch_size=batch_size, seed=cfg.seed, epoch=0)
-    plan = plan.reshape(-1, 2)
-    order = np.argsort(np.where(plan[:, 0] < 0, len(store), plan[:, 0]), kind="stable")
-    plan = plan[order].reshape(-1, batch_size, 2)
-    return [
-        make_batch(store, entries, budget, nodes_per_sample=cfg.nodes_per_sample,
-                   seed=cfg.seed, epoch=_EVAL_EPOCH, position=i)
-        for i, entries in enumerate(plan)
-    ]
-
-
-def _end_epoch(epoch, step, acc, val_batches, eval_step, state, mesh, lr, elapsed) -> dict:
-    nodes = max(acc[2], 1.0)
-    record = {"epoch": epoch + 1, "step": step, "train_loss": acc[0] / nodes,
-              "train_mse": acc[1] / nodes, "lr": lr, "time_s": elapsed}
-    if val_batches:
-        tot = np.zeros(3)
-        for batch in val_batches:
-            m = jax.device_get(eval_step(state.params, shard_batch(batch, mesh)))
-            tot += np.array([m["loss"], m["mse"], 1.0]) * float(m["nodes"])
-        record["val_loss"] = tot[0] / max(tot[2], 1.0)
-        record["val_mse"] = tot[1] / max(tot[2], 1.0)
-    return {k: float(v) if isinstance(v, np.floating | float) else v for k, v in record.items()}
 
 
 def _log(out_dir: pathlib.Path, record: dict) -> None:
