@@ -48,11 +48,12 @@ motion turned by one random rotation, the target unchanged, so the model is show
 in across its path; ``thrombojax.train.noise.add_direction_noise``), alone and guarded
 (``direction10``, ``direction10_guards``), with the speed noise 0.1 as well (``dirspeed``,
 ``dirspeed_guards``, two seeds ``dirspeed_seeds``) and with 0.3 rad (``dirspeed3``); and which
-checkpoint is kept: ``dirspeed`` picking its best checkpoint by a rollout on the validation
-simulation each epoch (``select_by`` ``rollout``: ``dirspeed_rollout``, guarded
-``dirspeed_rollout_guards``, four seeds ``rollout_seeds``), the last epoch's checkpoint of the
-same trainings (a rung's ``checkpoint`` ``last``: ``dirspeed_last``, ``dirspeed_last_guards``,
-``last_seeds``) and of the history-noise recipe (``histnoise_last``, ``histnoise_last_seeds``).
+checkpoint is kept: direction and speed noise without the history noise, picking its best
+checkpoint by a rollout on the validation simulation each epoch (``select_by`` ``rollout``:
+``nohist_rollout``, guarded ``nohist_rollout_guards``, four seeds ``nohist_rollout_seeds``),
+the last epoch's checkpoint of the same trainings (a rung's ``checkpoint`` ``last``:
+``nohist_last``, ``nohist_last_guards``, ``nohist_last_seeds``) and of the history-noise
+recipe (``histnoise_last``, ``histnoise_last_seeds``).
 ``--transfer DATA`` also rolls every rung out on all simulations of another
 dataset (train on one, evaluate on the other). Every rung trains the same small MeshGraphNet
 (``--size study``: the study's, for an accelerator) for the same wall-clock budget (the epoch

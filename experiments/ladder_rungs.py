@@ -38,8 +38,9 @@ TSCALE = {**HISTNOISE, "time_scale": 1.5}
 DIRECTION, DIRSPEED = ({**HISTNOISE, "direction_noise": 0.1},
                        {**SPEED10, "direction_noise": 0.1})
 DIRSPEED3 = {**SPEED10, "direction_noise": 0.3}
-# it with the best checkpoint picked by a rollout on the validation simulation each epoch
-DIRSPEED_ROLLOUT = {**DIRSPEED, "select_by": "rollout"}
+# direction and speed noise 0.1 without the history noise (the signed recipe with both), its
+# best checkpoint picked by a rollout on the validation simulation each epoch
+NOHIST_ROLLOUT = {**SIGNED, "speed_noise": 0.1, "direction_noise": 0.1, "select_by": "rollout"}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -136,16 +137,18 @@ RUNGS: tuple[Rung, ...] = (
     Rung("dirspeed_seeds", DIRSPEED, reuse="dirspeed", members=2),
     Rung("dirspeed3", DIRSPEED3),
     # which checkpoint: the lowest one-step validation MSE (the rungs above) picked epoch 5 of
-    # 25 for dirspeed's seed 1; the same recipe picking by the validation rollout, and the last
-    # epoch's checkpoint of the same training (what --select-by last keeps), alone and guarded,
-    # seeds 0-3 (members alone and as an ensemble); the history-noise recipe's last checkpoints
-    Rung("dirspeed_rollout", DIRSPEED_ROLLOUT),
-    Rung("dirspeed_rollout_guards", DIRSPEED_ROLLOUT, guards=True, reuse="dirspeed_rollout"),
-    Rung("dirspeed_last", DIRSPEED_ROLLOUT, reuse="dirspeed_rollout", checkpoint="last"),
-    Rung("dirspeed_last_guards", DIRSPEED_ROLLOUT, guards=True, reuse="dirspeed_rollout",
+    # 25 for dirspeed's seed 1; direction and speed noise without the history noise, picking by
+    # the validation rollout, and the last epoch's checkpoint of the same trainings (what
+    # --select-by last keeps), alone and guarded, seeds 0-3 (members alone and as an
+    # ensemble); the history-noise recipe's last checkpoints
+    Rung("nohist_rollout", NOHIST_ROLLOUT),
+    Rung("nohist_rollout_guards", NOHIST_ROLLOUT, guards=True, reuse="nohist_rollout"),
+    Rung("nohist_last", NOHIST_ROLLOUT, reuse="nohist_rollout", checkpoint="last"),
+    Rung("nohist_last_guards", NOHIST_ROLLOUT, guards=True, reuse="nohist_rollout",
          checkpoint="last"),
-    Rung("rollout_seeds", DIRSPEED_ROLLOUT, reuse="dirspeed_rollout", members=4),
-    Rung("last_seeds", DIRSPEED_ROLLOUT, reuse="dirspeed_rollout", members=4, checkpoint="last"),
+    Rung("nohist_rollout_seeds", NOHIST_ROLLOUT, reuse="nohist_rollout", members=4),
+    Rung("nohist_last_seeds", NOHIST_ROLLOUT, reuse="nohist_rollout", members=4,
+         checkpoint="last"),
     Rung("histnoise_last", HISTNOISE, reuse="signed_histnoise", checkpoint="last"),
     Rung("histnoise_last_seeds", HISTNOISE, reuse="signed_histnoise", members=2,
          checkpoint="last"),

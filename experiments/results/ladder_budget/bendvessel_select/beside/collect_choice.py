@@ -10,14 +10,15 @@ import pathlib
 import sys
 
 DIRSPEED = "+ direction and speed noise 0.1"
+NOHIST = "direction and speed noise 0.1, no history noise"
 RUNS = [  # (recipe label, seed, run name, code)
     ("history noise", 0, "hn_s0", "earlier"), ("history noise", 1, "hn_s1", "earlier"),
     ("+ speed noise 0.1", 0, "sp10_s0", "earlier"),
     ("+ direction noise 0.1", 0, "dn_s0", "earlier"),
     (DIRSPEED, 0, "dnsp_s0", "earlier"), (DIRSPEED, 1, "dnsp_s1", "earlier"),
     (DIRSPEED, 2, "dnsp_s2", "earlier"),
-    (DIRSPEED, 0, "dnspR_s0", "current"), (DIRSPEED, 1, "dnspR_s1", "current"),
-    (DIRSPEED, 2, "dnspR_s2", "current"), (DIRSPEED, 3, "dnspR_s3", "current"),
+    (NOHIST, 0, "dnspR_s0", "current"), (NOHIST, 1, "dnspR_s1", "current"),
+    (NOHIST, 2, "dnspR_s2", "current"), (NOHIST, 3, "dnspR_s3", "current"),
 ]
 
 
