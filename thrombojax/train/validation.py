@@ -4,9 +4,11 @@ that pick the checkpoint by how its rollout holds.
 :func:`eval_batches` and :func:`end_epoch_record`: every validation window once per epoch, in
 order, with a fixed node subset; the epoch's record of ``metrics.jsonl``.
 
-The one-step validation MSE says little about a rollout: two seeds of one recipe with the same
-one-step error can roll out at 0.3x and 1.8x the constant-velocity (CV) baseline, and one
-training run's rollout changes from epoch to epoch. With ``select_by="rollout"``
+The one-step validation MSE says little about a rollout: with noisy training recipes it hardly
+moves from epoch to epoch while the rollout changes several-fold, so its lowest epoch can be an
+undertrained one (epoch 5 of 25 of a run whose last epoch rolls out at 0.36x the
+constant-velocity (CV) baseline and epoch 5 at 1.80x;
+``experiments/results/ladder_budget/bendvessel_select/README.md``). With ``select_by="rollout"``
 (``thrombojax train --select-by rollout``) every epoch ends with a rollout of the model alone
 (no guards) on each validation simulation, from the dataset's skipped frames
 (:func:`thrombojax.study.skip_frames`, at least 1) to its last frame, the same rollout
