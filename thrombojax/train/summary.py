@@ -6,6 +6,7 @@ import json
 import pathlib
 
 from thrombojax.train.plots import best_epoch
+from thrombojax.train.state import read_run_config
 
 __all__ = ["run_summary"]
 
@@ -50,8 +51,6 @@ def run_summary(run_dir: str | pathlib.Path, model_name: str) -> str:
 
 
 def _select_by(run_dir: pathlib.Path) -> str:
-    """The run's ``select_by`` from its ``config.json`` (``"mse"`` when absent)."""
-    try:
-        return str(json.loads((run_dir / "config.json").read_text())["train"]["select_by"])
-    except (OSError, ValueError, KeyError, TypeError):
-        return "mse"
+    """The run's ``select_by`` (:func:`~thrombojax.train.state.read_run_config`); ``"mse"`` for
+    runs saved before the option existed."""
+    return str(read_run_config(run_dir)["train"].get("select_by", "mse"))
