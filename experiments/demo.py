@@ -35,7 +35,7 @@ from thrombojax.io.outputs import fresh_owned_folder
 from thrombojax.sim.generate import generate_dataset
 from thrombojax.sim.presets import get_preset
 from thrombojax.train.loop import train
-from thrombojax.train.recipes import DEFAULT_RECIPE, recipe
+from thrombojax.train.recipes import DEFAULT_RECIPE, RECIPES, recipe
 
 __all__ = ["DemoConfig", "run_demo", "main"]
 
@@ -211,11 +211,16 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", default="demo_output", help="output folder (replaced)")
     parser.add_argument("--tiny", action="store_true", help="seconds-long version (tests)")
     parser.add_argument("--train-minutes", type=float, help="training time budget (minutes)")
+    parser.add_argument("--recipe", choices=sorted(RECIPES), default=None,
+                        help=f"training recipe (default: {DEFAULT_RECIPE}, the default of "
+                             "`thrombojax train`; thrombojax/train/recipes.py)")
     parser.add_argument("--quiet", action="store_true", help="no progress bars")
     args = parser.parse_args(argv)
     config = DemoConfig.tiny() if args.tiny else DemoConfig()
     if args.train_minutes is not None:
         config = dataclasses.replace(config, train_minutes=args.train_minutes)
+    if args.recipe is not None:
+        config = dataclasses.replace(config, recipe=args.recipe)
     try:
         run_demo(args.out, config, progress=not args.quiet)
     except ThrombojaxError as err:

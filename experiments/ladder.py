@@ -53,7 +53,11 @@ checkpoint by a rollout on the validation simulation each epoch (``select_by`` `
 ``nohist_rollout``, guarded ``nohist_rollout_guards``, four seeds ``nohist_rollout_seeds``),
 the last epoch's checkpoint of the same trainings (a rung's ``checkpoint`` ``last``:
 ``nohist_last``, ``nohist_last_guards``, ``nohist_last_seeds``) and of the history-noise
-recipe (``histnoise_last``, ``histnoise_last_seeds``).
+recipe (``histnoise_last``, ``histnoise_last_seeds``); the last checkpoints of ``dirspeed``
+(``dirspeed_last``, guarded ``dirspeed_last_guards``, five seeds alone and as an ensemble
+``dirspeed_last_seeds``, the ensemble guarded ``dirspeed_last_ens_guards``), and the same
+recipe trained with ``--select-by last`` (``robust``, ``robust_guards``: the ``robust``
+recipe of ``thrombojax train``).
 ``--transfer DATA`` also rolls every rung out on all simulations of another
 dataset (train on one, evaluate on the other). Every rung trains the same small MeshGraphNet
 (``--size study``: the study's, for an accelerator) for the same wall-clock budget (the epoch

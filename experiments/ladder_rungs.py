@@ -41,6 +41,9 @@ DIRSPEED3 = {**SPEED10, "direction_noise": 0.3}
 # direction and speed noise 0.1 without the history noise (the signed recipe with both), its
 # best checkpoint picked by a rollout on the validation simulation each epoch
 NOHIST_ROLLOUT = {**SIGNED, "speed_noise": 0.1, "direction_noise": 0.1, "select_by": "rollout"}
+# direction and speed noise with the history noise (``DIRSPEED``), keeping the last epoch's
+# checkpoint (``--select-by last``): ``thrombojax train --recipe robust``
+DIRSPEED_LAST = {**DIRSPEED, "select_by": "last"}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -152,4 +155,17 @@ RUNGS: tuple[Rung, ...] = (
     Rung("histnoise_last", HISTNOISE, reuse="signed_histnoise", checkpoint="last"),
     Rung("histnoise_last_seeds", HISTNOISE, reuse="signed_histnoise", members=2,
          checkpoint="last"),
+    # the last checkpoints of the direction + speed noise recipe with the history noise
+    # (dirspeed): seed 0 alone and guarded, seeds 0-4 alone (each, and as an ensemble) and
+    # the ensemble guarded; members 3 and 4 trained with --select-by last (the same last
+    # checkpoint: the rule does not change the training)
+    Rung("dirspeed_last", DIRSPEED, reuse="dirspeed", checkpoint="last"),
+    Rung("dirspeed_last_guards", DIRSPEED, guards=True, reuse="dirspeed", checkpoint="last"),
+    Rung("dirspeed_last_seeds", DIRSPEED_LAST, reuse="dirspeed", members=5, checkpoint="last"),
+    Rung("dirspeed_last_ens_guards", DIRSPEED_LAST, guards=True, reuse="dirspeed", members=5,
+         checkpoint="last"),
+    # the same recipe trained with --select-by last (for a dataset without the rungs above,
+    # e.g. ClotEntry), alone and guarded
+    Rung("robust", DIRSPEED_LAST),
+    Rung("robust_guards", DIRSPEED_LAST, guards=True, reuse="robust"),
 )

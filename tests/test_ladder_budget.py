@@ -71,13 +71,17 @@ def test_ensemble_rung_trains_members_like_the_reused_rung(tmp_path, monkeypatch
 def test_the_recipes_are_the_ladders_rungs(monkeypatch):
     """README and docs say `thrombojax train`'s default recipe is the ladder's history_walk rung
     (its best rung at equal CPU time, for every seed) and `--recipe rollout` its rotation
-    rung: the dicts must stay equal."""
+    rung, `--recipe robust` its robust rung (the dirspeed_last rungs' recipe): the dicts must
+    stay equal."""
     from thrombojax.train.recipes import DEFAULT_RECIPE, recipe
 
     ladder = _ladder(monkeypatch)
     rungs = {r.name: r for r in ladder.RUNGS}
     assert rungs["history_walk"].train == recipe(DEFAULT_RECIPE)
     assert rungs["rotation"].train == recipe("rollout")
+    assert rungs["robust"].train == recipe("robust")
+    last = rungs["dirspeed_last"]
+    assert {**last.train, "select_by": "last"} == recipe("robust") and last.checkpoint == "last"
 
 
 def test_members_alone_reports_every_seed(tmp_path, monkeypatch):

@@ -148,8 +148,24 @@ def test_recipes():
     assert cfg.rollout_steps > 1 and cfg.pushforward_steps > 0 and cfg.noise_std > 0
     cfg = TrainConfig(**recipe("history"))
     assert cfg.history == 2 and cfg.noise_walk and cfg.noise_std > 0 and cfg.rollout_steps == 1
+    cfg = TrainConfig(**recipe("robust"))
+    assert {k: v for k, v in recipe("robust").items() if k not in recipe("history")} == {
+        "wall_noise": 0.1, "wall_features": 0.5, "wall_signed": True, "history_noise": 0.02,
+        "speed_noise": 0.1, "direction_noise": 0.1, "select_by": "last"}
+    assert all(getattr(cfg, k) == v for k, v in recipe("history").items())
     with pytest.raises(ConfigError, match="unknown recipe"):
         recipe("fast")
+
+
+def test_cli_offers_every_recipe():
+    """`thrombojax train --recipe` lists its choices literally (the CLI does not import jax to
+    build its parser): they must be the names of RECIPES, so each one is accepted."""
+    from thrombojax.cli import build_parser
+    from thrombojax.train.recipes import RECIPES
+
+    train = next(a for a in build_parser()._subparsers._group_actions[0].choices["train"]._actions
+                 if "--recipe" in a.option_strings)
+    assert set(train.choices) == set(RECIPES)
 
 
 def test_cli_trains_with_the_default_recipe_and_reloads_the_step(tmp_path):

@@ -96,13 +96,19 @@ def _add_train(sub) -> None:
                    "differing only by seed into DIR/member_<i> (rollouts then report spread)")
     p.add_argument("--curriculum-epochs", type=NN_FLOAT, help="grow k from 1 to "
                    "--rollout-steps over this many epochs (default 0: k from the start)")
-    p.add_argument("--recipe", choices=("rollout", "history", "study"), help="a named set of "
+    # the names of thrombojax.train.recipes.RECIPES (not imported here: it loads jax; a test
+    # keeps the two equal)
+    p.add_argument("--recipe", choices=("rollout", "history", "robust", "study"),
+                   help="a named set of "
                    "training options under the explicit ones: 'history' (the default without "
                    "--config or --resume: the step also reads the acceleration before t, "
                    "--history 2, single-step loss, random-walk noise 0.01 r, rotations up to "
                    "pi; the stability ladder's best rung at equal CPU time), 'rollout' (noise "
                    "0.01 r, 1 push-forward step, a 3-step loss grown over 6 epochs, rotations "
-                   "up to pi; four times the cost per epoch) or 'study' (the study's "
+                   "up to pi; four times the cost per epoch), 'robust' (history plus wall "
+                   "noise 0.1 r with signed wall features, history noise 0.02 r, speed and "
+                   "direction noise 0.1, --select-by last: the best on BendVessel with and "
+                   "without guards, worse than history on ClotEntry) or 'study' (the study's "
                    "single-step recipe, TrainConfig's defaults)")
     p.add_argument("--frame", choices=("global", "vessel"), help="frame of the learned step: "
                    "'vessel' works in the rigid vessel's principal axes (exactly invariant to "

@@ -13,6 +13,18 @@
   vessel's frame, ``frame="vessel"``, is exactly invariant to orientation and gave the best
   single-step error, but its k-step training diverged in the ladder, with and without gradient
   clipping; it stays an option.)
+* ``"robust"``: ``history`` plus what keeps the model alone (no guards) on its path: wall
+  noise (clot nodes near the wall pushed through it, the target bringing them back, 0.1
+  vessel radii) with signed wall features (the signed distance to the wall and its normal,
+  cut off at 0.5 r), history noise (0.02 r: the history's clot-wide acceleration not carried
+  over), speed and direction noise (the clot's input motion scaled by ``1 + N(0, 0.1^2)`` and
+  turned by ``N(0, 0.1^2)`` rad, the target unchanged), and the last epoch's checkpoint
+  (``select_by="last"``: with this much noise the one-step validation MSE hardly moves and
+  picked undertrained epochs). The stability ladder's ``robust`` rung (its ``dirspeed_last``
+  rungs evaluate the same recipe): on BendVessel all five seeds roll out at 0.29-0.39x
+  constant velocity alone (``experiments/results/ladder_budget/bendvessel_last/``), but on
+  ClotEntry, whose clot's acceleration persists, it fell to 0.61x where ``history`` gives
+  0.13x (``experiments/results/ladder_budget/clotentry_robust/``): not the default.
 * ``"study"``: the study's single-step recipe, i.e. :class:`TrainConfig`'s own defaults (random
   rotations up to pi, no noise, one-step loss): for reproducing the study's tables.
 
@@ -44,6 +56,19 @@ RECIPES: types.MappingProxyType = types.MappingProxyType({
         "max_rotation": math.pi,
         "history": 2,
         "noise_walk": True,
+    }),
+    "robust": types.MappingProxyType({
+        "noise_std": 0.01,
+        "max_rotation": math.pi,
+        "history": 2,
+        "noise_walk": True,
+        "wall_noise": 0.1,
+        "wall_features": 0.5,
+        "wall_signed": True,
+        "history_noise": 0.02,
+        "speed_noise": 0.1,
+        "direction_noise": 0.1,
+        "select_by": "last",
     }),
     "study": types.MappingProxyType({}),
 })
