@@ -168,4 +168,7 @@ RUNGS: tuple[Rung, ...] = (
     # e.g. ClotEntry), alone and guarded
     Rung("robust", DIRSPEED_LAST),
     Rung("robust_guards", DIRSPEED_LAST, guards=True, reuse="robust"),
+    # its control without the history noise, guarded (ClotEntry: is it the history noise that
+    # makes the step ignore the history's acceleration?)
+    Rung("robust_nohist_guards", {**DIRSPEED_LAST, "history_noise": 0.0}, guards=True),
 )

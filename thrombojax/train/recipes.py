@@ -23,8 +23,8 @@
   picked undertrained epochs). The stability ladder's ``robust`` rung (its ``dirspeed_last``
   rungs evaluate the same recipe): on BendVessel all five seeds roll out at 0.29-0.39x
   constant velocity alone (``experiments/results/ladder_budget/bendvessel_last/``), but on
-  ClotEntry, whose clot's acceleration persists, it fell to 0.61x where ``history`` gives
-  0.13x (``experiments/results/ladder_budget/clotentry_robust/``): not the default.
+  ClotEntry it fell to 0.61x where ``history`` gives 0.13x
+  (``experiments/results/ladder_budget/clotentry_robust/``): not the default.
 * ``"study"``: the study's single-step recipe, i.e. :class:`TrainConfig`'s own defaults (random
   rotations up to pi, no noise, one-step loss): for reproducing the study's tables.
 
