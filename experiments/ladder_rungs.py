@@ -169,6 +169,6 @@ RUNGS: tuple[Rung, ...] = (
     Rung("robust", DIRSPEED_LAST),
     Rung("robust_guards", DIRSPEED_LAST, guards=True, reuse="robust"),
     # its control without the history noise, guarded (ClotEntry: is it the history noise that
-    # makes the step ignore the history's acceleration?)
+    # makes the step ignore the history's acceleration? measured: no, 0.58x CV against 0.61x)
     Rung("robust_nohist_guards", {**DIRSPEED_LAST, "history_noise": 0.0}, guards=True),
 )

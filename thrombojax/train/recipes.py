@@ -43,6 +43,13 @@ from thrombojax.errors import ConfigError
 
 __all__ = ["RECIPES", "DEFAULT_RECIPE", "recipe"]
 
+_HISTORY = {
+    "noise_std": 0.01,
+    "max_rotation": math.pi,
+    "history": 2,
+    "noise_walk": True,
+}
+
 RECIPES: types.MappingProxyType = types.MappingProxyType({
     "rollout": types.MappingProxyType({
         "noise_std": 0.01,
@@ -51,17 +58,9 @@ RECIPES: types.MappingProxyType = types.MappingProxyType({
         "curriculum_epochs": 6.0,
         "max_rotation": math.pi,
     }),
-    "history": types.MappingProxyType({
-        "noise_std": 0.01,
-        "max_rotation": math.pi,
-        "history": 2,
-        "noise_walk": True,
-    }),
+    "history": types.MappingProxyType(dict(_HISTORY)),
     "robust": types.MappingProxyType({
-        "noise_std": 0.01,
-        "max_rotation": math.pi,
-        "history": 2,
-        "noise_walk": True,
+        **_HISTORY,
         "wall_noise": 0.1,
         "wall_features": 0.5,
         "wall_signed": True,
