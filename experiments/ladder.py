@@ -57,7 +57,9 @@ recipe (``histnoise_last``, ``histnoise_last_seeds``); the last checkpoints of `
 (``dirspeed_last``, guarded ``dirspeed_last_guards``, five seeds alone and as an ensemble
 ``dirspeed_last_seeds``, the ensemble guarded ``dirspeed_last_ens_guards``), and the same
 recipe trained with ``--select-by last`` (``robust``, ``robust_guards``: the ``robust``
-recipe of ``thrombojax train``).
+recipe of ``thrombojax train``; ``robust_nohist_guards`` without its history noise); the
+default recipe with the velocity split along and across the local vessel axis
+(``--axis-features 2``: ``walk_axis`` guarded, ``axis_alone`` the same model unguarded).
 ``--transfer DATA`` also rolls every rung out on all simulations of another
 dataset (train on one, evaluate on the other). Every rung trains the same small MeshGraphNet
 (``--size study``: the study's, for an accelerator) for the same wall-clock budget (the epoch

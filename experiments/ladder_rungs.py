@@ -44,6 +44,7 @@ NOHIST_ROLLOUT = {**SIGNED, "speed_noise": 0.1, "direction_noise": 0.1, "select_
 # direction and speed noise with the history noise (``DIRSPEED``), keeping the last epoch's
 # checkpoint (``--select-by last``): ``thrombojax train --recipe robust``
 DIRSPEED_LAST = {**DIRSPEED, "select_by": "last"}
+AXIS = {**WALK, "axis_features": 2.0}  # the default recipe + vessel-axis velocity split
 
 
 @dataclasses.dataclass(frozen=True)
@@ -171,4 +172,8 @@ RUNGS: tuple[Rung, ...] = (
     # its control without the history noise, guarded (ClotEntry: is it the history noise that
     # makes the step ignore the history's acceleration? measured: no, 0.58x CV against 0.61x)
     Rung("robust_nohist_guards", {**DIRSPEED_LAST, "history_noise": 0.0}, guards=True),
+    # the default recipe with the velocity split along and across the local vessel axis
+    # (--axis-features 2: the wall's normals within about 2 r), guarded and alone
+    Rung("walk_axis", AXIS, guards=True),
+    Rung("axis_alone", AXIS, reuse="walk_axis"),
 )

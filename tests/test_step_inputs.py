@@ -143,7 +143,10 @@ def test_recipes():
     from thrombojax.train.config import TrainConfig
     from thrombojax.train.recipes import DEFAULT_RECIPE, recipe
 
-    assert DEFAULT_RECIPE == "history" and recipe("study") == {}
+    assert DEFAULT_RECIPE == "axis" and recipe("study") == {}
+    assert {k: v for k, v in recipe("axis").items() if k not in recipe("history")} == {
+        "axis_features": 2.0}
+    assert all(recipe("axis")[k] == v for k, v in recipe("history").items())
     cfg = TrainConfig(**recipe("rollout"))
     assert cfg.rollout_steps > 1 and cfg.pushforward_steps > 0 and cfg.noise_std > 0
     cfg = TrainConfig(**recipe("history"))
@@ -184,6 +187,7 @@ def test_cli_trains_with_the_default_recipe_and_reloads_the_step(tmp_path):
     assert loaded.step.frame == "vessel" and loaded.step.history == 2
     assert loaded.step.wall_cutoff == pytest.approx(loaded.config["wall_cutoff"])
     assert loaded.step.wall_cutoff > 0
+    assert loaded.run.train.axis_features == 2.0 and loaded.step.axis_radius > 0  # the default
     report = rollout_run(run, data, tmp_path / "rollout", progress=False, gif=False)
     sims = report["simulations"]
     assert sims and all("NaN" not in json.dumps(r["summary"]) for r in sims.values())

@@ -21,8 +21,9 @@ def _add_train(sub) -> None:
         description=(
             "Train a step-by-step surrogate: AdamW with linear warm-up then cosine decay, "
             "masked MSE on clot nodes, random rotations, optional node subsampling and "
-            "BaryCentricSampling, and by default the history recipe on top (--recipe: the "
-            "step also reads the acceleration before t, random-walk input noise; '--recipe "
+            "BaryCentricSampling, and by default the axis recipe on top (--recipe: the "
+            "step also reads the acceleration before t and its velocity along and across the "
+            "vessel's axis, random-walk input noise; '--recipe "
             "rollout' a k-step loss with push-forward instead; '--recipe study' trains as the "
             "study did). Writes DIR/config.json, DIR/checkpoints/{best,last}, "
             "DIR/metrics.jsonl and DIR/loss.png. Options left out take the recipe's, the "
@@ -98,12 +99,15 @@ def _add_train(sub) -> None:
                    "--rollout-steps over this many epochs (default 0: k from the start)")
     # the names of thrombojax.train.recipes.RECIPES (not imported here: it loads jax; a test
     # keeps the two equal)
-    p.add_argument("--recipe", choices=("rollout", "history", "robust", "study"),
+    p.add_argument("--recipe", choices=("axis", "rollout", "history", "robust", "study"),
                    help="a named set of "
-                   "training options under the explicit ones: 'history' (the default without "
-                   "--config or --resume: the step also reads the acceleration before t, "
+                   "training options under the explicit ones: 'axis' (the default without "
+                   "--config or --resume: 'history' plus the velocity split along and across "
+                   "the local vessel axis, --axis-features 2; the stability ladder's best rung "
+                   "on both datasets; at most 8,192 nodes per sample), 'history' (the step "
+                   "also reads the acceleration before t, "
                    "--history 2, single-step loss, random-walk noise 0.01 r, rotations up to "
-                   "pi; the stability ladder's best rung at equal CPU time), 'rollout' (noise "
+                   "pi), 'rollout' (noise "
                    "0.01 r, 1 push-forward step, a 3-step loss grown over 6 epochs, rotations "
                    "up to pi; four times the cost per epoch), 'robust' (history plus wall "
                    "noise 0.1 r with signed wall features, history noise 0.02 r, speed and "
@@ -122,6 +126,9 @@ def _add_train(sub) -> None:
     p.add_argument("--wall-features", type=NN_FLOAT, help="give clot nodes the distance and "
                    "direction to the nearest vessel node, cut off at this many vessel radii "
                    "(default 0: off)")
+    p.add_argument("--axis-features", type=NN_FLOAT, help="give clot nodes their velocity "
+                   "split along and across the local vessel axis (from the wall's normals "
+                   "within about this many vessel radii; default 0: off)")
     p.add_argument("--wall-signed", action="store_true", default=None, help="with "
                    "--wall-features: the features are the signed distance to the wall "
                    "(positive outside) and its outward normal, which tell a node that crossed "
@@ -150,7 +157,8 @@ def _run_train(args) -> int:
              "n_test", "tiny", "rollout_steps", "noise_gamma", "pushforward_steps",
              "curriculum_epochs", "frame", "wall_features", "history", "noise_walk",
              "stop_history_gradient", "noise_shared", "wall_noise", "wall_signed",
-             "history_noise", "speed_noise", "direction_noise", "time_scale", "select_by")
+             "history_noise", "speed_noise", "direction_noise", "time_scale", "select_by",
+             "axis_features")
     overrides = {k: getattr(args, k) for k in names if getattr(args, k) is not None}
     from thrombojax.train.recipes import DEFAULT_RECIPE, recipe
 

@@ -131,8 +131,9 @@ def local_wall_plane(
     """
     if x.shape[0] > DENSE_PLANE_NODES:
         raise ValueError(f"local wall plane: {x.shape[0]} nodes; its dense search is meant for "
-                         f"at most {DENSE_PLANE_NODES} (signed wall features and wall noise "
-                         "are for training-size clouds)")
+                         f"at most {DENSE_PLANE_NODES} (signed wall features, vessel-axis "
+                         "features and wall noise are for training-size clouds: subsample, "
+                         "e.g. --nodes-per-sample in training, --nodes in a rollout)")
     if k_normal < 3 or k_avg < 1:
         raise ValueError(f"local wall plane: need k_normal >= 3 and k_avg >= 1, got "
                          f"{k_normal!r}, {k_avg!r}")

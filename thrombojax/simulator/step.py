@@ -72,6 +72,7 @@ from thrombojax.errors import ConfigError
 from thrombojax.graph.frame import FRAMES, VesselFrame, vessel_frame
 from thrombojax.graph.grid import GridSpec
 from thrombojax.graph.neighbors import graph_overflow
+from thrombojax.graph.vessel_axis import axis_velocity_features
 from thrombojax.graph.wall_nodes import signed_wall_features, wall_node_features
 from thrombojax.models.registry import Surrogate
 from thrombojax.types import ModelInput, TargetStats, clot_mask
@@ -176,6 +177,9 @@ class LearnedStep:
         stop_history_gradient: the history features are constants to differentiation (an
             unrolled loss then takes gradients through positions and velocities only, as for
             one velocity); outputs are unchanged.
+        axis_radius: width in scaled units of the vessel-axis features, the velocity split
+            along and across the local vessel axis
+            (:func:`thrombojax.graph.vessel_axis.axis_velocity_features`; 0: none).
     """
 
     model: Surrogate
@@ -185,6 +189,7 @@ class LearnedStep:
     grid: GridSpec | None = None
     history: int = 1
     stop_history_gradient: bool = False
+    axis_radius: float = 0.0
 
     def __post_init__(self) -> None:
         if self.frame not in FRAMES:
@@ -193,6 +198,9 @@ class LearnedStep:
         if not (self.wall_cutoff >= 0 and self.wall_cutoff < float("inf")):
             raise ConfigError(f"learned step: wall_cutoff must be a finite number >= 0, "
                               f"got {self.wall_cutoff!r}")
+        if not (self.axis_radius >= 0 and self.axis_radius < float("inf")):
+            raise ConfigError(f"learned step: axis_radius must be a finite number >= 0, "
+                              f"got {self.axis_radius!r}")
         if not isinstance(self.history, int) or isinstance(self.history, bool) or \
                 self.history < 1:
             raise ConfigError(f"learned step: history must be an int >= 1 (frames before t), "
@@ -281,6 +289,10 @@ class LearnedStep:
         if self.wall_cutoff > 0:
             features = signed_wall_features if self.wall_signed else wall_node_features
             extra.append(features(x_cur, node_type, mask, cutoff=self.wall_cutoff))
+        if self.axis_radius > 0:
+            extra.append(axis_velocity_features(self.last_previous(x_prev), x_cur, node_type,
+                                                mask, radius=self.axis_radius,
+                                                velocity_scale=velocity_scale))
         if extra:
             inputs = inputs.replace(extra=jnp.concatenate(extra, axis=-1))
         return inputs
@@ -345,13 +357,15 @@ def _init(step: LearnedStep, rng, x_prev, x_cur, node_type, mask) -> dict:
 
 def make_step(model: Surrogate, frame: str = "global", wall_cutoff: float = 0.0,
               grid: GridSpec | None = None, history: int = 1,
-              stop_history_gradient: bool = False, wall_signed: bool = False) -> LearnedStep:
+              stop_history_gradient: bool = False, wall_signed: bool = False,
+              axis_radius: float = 0.0) -> LearnedStep:
     """The learned simulator of a surrogate in ``frame``, with wall features when
-    ``wall_cutoff > 0``, the cell ``grid`` where it pays and ``history`` previous frames (see
-    the module docstring and :class:`LearnedStep`)."""
+    ``wall_cutoff > 0``, vessel-axis features when ``axis_radius > 0``, the cell ``grid``
+    where it pays and ``history`` previous frames (see the module docstring and
+    :class:`LearnedStep`)."""
     return LearnedStep(model=model, frame=frame, wall_cutoff=float(wall_cutoff), grid=grid,
                        history=history, stop_history_gradient=bool(stop_history_gradient),
-                       wall_signed=bool(wall_signed))
+                       wall_signed=bool(wall_signed), axis_radius=float(axis_radius))
 
 
 def past_accelerations(x_prev: jax.Array, x_cur: jax.Array, mask: jax.Array,

@@ -32,6 +32,7 @@ _RULES: dict[str, tuple[str, float, bool, bool]] = {
     "bary_max_neighbors": ("int", 2, True, False),
     "noise_std": ("float", 0.0, True, False),
     "wall_features": ("float", 0.0, True, False),
+    "axis_features": ("float", 0.0, True, False),
     "noise_gamma": ("float", 0.0, True, False),
     "noise_shared": ("float", 0.0, True, False),
     "wall_noise": ("float", 0.0, True, False),
@@ -110,3 +111,20 @@ def check_train_values(cfg: Any) -> None:
                           "the history's accelerations; with one previous frame there are none)")
     if not isinstance(cfg.model_config, dict):
         raise ConfigError(f"model_config must be a JSON object, got {cfg.model_config!r}")
+
+
+def check_dense_inputs(cfg, budget: int, where: str = "") -> None:
+    """Refuse, before training, a sample too large for the dense wall search that signed wall
+    features, wall noise and vessel-axis features use
+    (:data:`thrombojax.graph.wall_nodes.DENSE_PLANE_NODES` nodes)."""
+    from thrombojax.graph.wall_nodes import DENSE_PLANE_NODES
+
+    used = [f"--{n.replace('_', '-')}" for n in ("axis_features", "wall_noise")
+            if getattr(cfg, n, 0.0) > 0]
+    if getattr(cfg, "wall_signed", False):
+        used.append("--wall-signed")
+    if used and budget > DENSE_PLANE_NODES:
+        raise ConfigError(f"{where + ': ' if where else ''}{', '.join(used)} search the wall "
+                          f"densely, for at most {DENSE_PLANE_NODES} nodes per sample; the "
+                          f"samples have {budget}: subsample them (--nodes-per-sample N) or "
+                          "turn those options off (e.g. --axis-features 0)")

@@ -104,6 +104,9 @@ class TrainConfig:
         wall_signed: with ``wall_features``, the features are the signed distance to the wall
             (positive outside) and its outward normal instead
             (:func:`thrombojax.graph.wall_nodes.signed_wall_features`).
+        axis_features: width, in vessel radii, of the local vessel axis's neighbourhood: clot
+            nodes' inputs get their velocity split along and across the vessel's axis
+            (0: off; :func:`thrombojax.graph.vessel_axis.axis_velocity_features`).
         history: frames before t the learned step reads (1: the velocity alone; H >= 2: also
             the H - 1 accelerations before t, :mod:`thrombojax.simulator.step`); windows grow
             by H - 1 frames.
@@ -152,6 +155,7 @@ class TrainConfig:
     curriculum_epochs: float = 0.0
     frame: str = "global"
     wall_features: float = 0.0
+    axis_features: float = 0.0
     wall_signed: bool = False
     history: int = 1
     stop_history_gradient: bool = False

@@ -50,6 +50,7 @@ from thrombojax.io.hdf5 import open_dataset
 from thrombojax.models.registry import canonical_name, config_to_dict, create_model, get_config
 from thrombojax.simulator.step import make_step
 from thrombojax.study import training_defaults
+from thrombojax.train.checks import check_dense_inputs
 from thrombojax.train.config import RunConfig, TrainConfig, load_config_file
 from thrombojax.train.guards import (
     NonFiniteError,
@@ -208,6 +209,7 @@ def train(
         raise ConfigError(f"batch size {batch_size} is not a multiple of the {mesh.size} devices")
     max_nodes = max(train_store.max_nodes, val_store.max_nodes if val_store else 0)
     budget = padding_budget(max_nodes, cfg.nodes_per_sample)
+    check_dense_inputs(cfg, budget, where=str(dataset_path))
     check_train_memory(estimate_train_memory(
         n_windows=len(train_store), n_val_windows=len(val_store) if val_store else 0,
         bary_ratio=cfg.bary_ratio, batch_size=batch_size, budget=budget, length=length,
@@ -225,17 +227,19 @@ def train(
     # radii -> scaled; the radius (possibly a geometric estimate) only when it is needed
     radius = (vessel_radius(ds) / float(scaling.scale)
               if cfg.noise_std > 0 or cfg.wall_features > 0 or cfg.wall_noise > 0
+              or cfg.axis_features > 0
               or cfg.history_noise > 0 or cfg.select_by == "rollout" else 0.0)
     wall_cutoff = cfg.wall_features * radius
     step_fn = make_step(model, cfg.frame, wall_cutoff, history=cfg.history,
                         stop_history_gradient=cfg.stop_history_gradient,
-                        wall_signed=cfg.wall_signed)
+                        wall_signed=cfg.wall_signed, axis_radius=cfg.axis_features * radius)
     state = init_state(step_fn, tx, init_key, batch_of(plan_of(epoch=0)[0]))
     run_config = {
         **RunConfig(model=model_name, dataset=str(pathlib.Path(dataset_path).resolve()),
                     train=cfg).to_dict(),
         "stats": stats.to_dict(), "scaling": scaling.to_dict(), "budget": budget,
         "dataset_fingerprint": fingerprint, "wall_cutoff": wall_cutoff,
+        "axis_radius": step_fn.axis_radius,
         "units": str(ds.attrs.get("units", "")),
         "steps_per_epoch": steps_per_epoch, "total_steps": total_steps, "devices": mesh.size,
         "split": split.to_dict(),

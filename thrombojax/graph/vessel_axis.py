@@ -1,0 +1,82 @@
+"""The vessel's local axis at every clot node, and the velocity split along and across it.
+
+A clot in a vessel is driven along the vessel (a flow, an aspiration, a catheter) and held off
+the wall; a rollout that drifts fails by moving across the vessel (into the wall) or by losing
+its speed along it. The velocity alone does not say which part of it is which: the model must
+work the vessel's direction out of the wall nodes in its graph. These features give it the
+split directly, from the geometry alone (no solver quantity, so they mean the same on any
+solver's vessels):
+
+* the local axis ``t_i`` of the vessel at clot node ``i``: the direction orthogonal to the wall
+  normals around it, i.e. the eigenvector with the smallest eigenvalue of
+  ``M_i = sum_j w_ij n_j n_j^T`` over vessel nodes ``j`` (Gaussian weights
+  ``w_ij = exp(-|x_j - x_i|^2 / rho^2)``; ``n_j`` the wall normal of
+  :func:`thrombojax.graph.wall_nodes.local_wall_plane`). The normals of a tube are all
+  orthogonal to its axis, so ``t_i`` is the tube's axis; in a bend it follows the bend.
+* the velocity ``v_i = s_t - s_{t-1}`` split into ``(v_i . t_i) t_i`` (along the vessel) and the
+  rest (across it). Both are independent of the sign of ``t_i``, which the geometry cannot fix,
+  and rotate with the input (a global rotation of the frame rotates both parts).
+
+Jittable, dense (``N x N``): meant for training-size clouds, as the signed wall features
+(:data:`thrombojax.graph.wall_nodes.DENSE_PLANE_NODES` nodes at most).
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+
+from thrombojax.graph.wall_nodes import local_wall_plane
+from thrombojax.types import NodeType, clot_mask
+
+__all__ = ["vessel_axis", "axis_velocity_features"]
+
+
+def vessel_axis(
+    x: jax.Array, node_type: jax.Array, mask: jax.Array, *, radius: float
+) -> jax.Array:
+    """Unit local vessel axis at every node (sign arbitrary). Jittable.
+
+    Args:
+        x: ``[N, 3]`` positions (gradients are stopped). node_type: ``[N]`` NodeType.
+        mask: ``[N]`` real nodes.
+        radius: ``rho``, the width of the Gaussian weights over vessel nodes (> 0, units of
+            ``x``); about two vessel radii takes in the wall all round a clot node.
+    Returns:
+        ``[N, 3]`` unit vectors; zeros on every node when there is no real vessel node or no
+        real clot node (:func:`~thrombojax.graph.wall_nodes.local_wall_plane` gives no normals).
+    """
+    if not radius > 0:
+        raise ValueError(f"vessel axis: radius must be > 0, got {radius!r}")
+    x = jax.lax.stop_gradient(x)
+    mask = jnp.asarray(mask, bool)
+    vessel = mask & (jnp.asarray(node_type) == NodeType.VESSEL)
+    _, normal = local_wall_plane(x, node_type, mask)
+    d2 = jnp.sum((x[:, None, :] - x[None, :, :]) ** 2, axis=-1)
+    w = jnp.where(vessel[None, :], jnp.exp(-d2 / radius**2), 0.0)  # [N, N]
+    m = jnp.einsum("nj,ja,jb->nab", w, normal, normal)
+    _, vecs = jnp.linalg.eigh(m)
+    axis = vecs[:, :, 0]  # the direction of least normal: along the vessel
+    ok = jnp.any(jnp.linalg.norm(normal, axis=-1) > 0)
+    return jnp.where(ok, axis, 0.0)
+
+
+def axis_velocity_features(
+    x_prev: jax.Array, x_cur: jax.Array, node_type: jax.Array, mask: jax.Array, *,
+    radius: float, velocity_scale: jax.Array | float = 1.0,
+) -> jax.Array:
+    """``[N, 6]``: the velocity along the local vessel axis and across it, on clot nodes.
+
+    Args:
+        x_prev, x_cur: ``[N, 3]`` positions s_{t-1}, s_t. node_type: ``[N]`` NodeType.
+        mask: ``[N]`` real nodes. radius: see :func:`vessel_axis`.
+        velocity_scale: both parts are divided by it (the step's velocity normalisation).
+    Returns:
+        ``[(v . t) t, v - (v . t) t] / velocity_scale`` on real clot nodes, zeros elsewhere
+        (``v = x_cur - x_prev``, ``t`` = :func:`vessel_axis` of ``x_cur``).
+    """
+    t = vessel_axis(x_cur, node_type, mask, radius=radius)
+    v = (x_cur - x_prev) / velocity_scale
+    along = jnp.sum(v * t, axis=-1, keepdims=True) * t
+    feats = jnp.concatenate([along, v - along], axis=-1)
+    return jnp.where(clot_mask(node_type, mask)[:, None], feats, 0.0)
