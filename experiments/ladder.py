@@ -59,7 +59,8 @@ recipe (``histnoise_last``, ``histnoise_last_seeds``); the last checkpoints of `
 recipe trained with ``--select-by last`` (``robust``, ``robust_guards``: the ``robust``
 recipe of ``thrombojax train``; ``robust_nohist_guards`` without its history noise); the
 default recipe with the velocity split along and across the local vessel axis
-(``--axis-features 2``: ``walk_axis`` guarded, ``axis_alone`` the same model unguarded).
+(``--axis-features 2``: ``walk_axis`` guarded, ``axis_alone`` the same model unguarded,
+``axis_seeds`` / ``axis_ens_guards`` seeds 0 and 1 alone and guarded, each also scored alone).
 ``--transfer DATA`` also rolls every rung out on all simulations of another
 dataset (train on one, evaluate on the other). Every rung trains the same small MeshGraphNet
 (``--size study``: the study's, for an accelerator) for the same wall-clock budget (the epoch

@@ -176,4 +176,7 @@ RUNGS: tuple[Rung, ...] = (
     # (--axis-features 2: the wall's normals within about 2 r), guarded and alone
     Rung("walk_axis", AXIS, guards=True),
     Rung("axis_alone", AXIS, reuse="walk_axis"),
+    # seeds 0 and 1 of it (each member also scored alone: the seed spread), alone and guarded
+    Rung("axis_seeds", AXIS, reuse="walk_axis", members=2),
+    Rung("axis_ens_guards", AXIS, guards=True, reuse="walk_axis", members=2),
 )
