@@ -6,7 +6,7 @@
   :mod:`thrombojax.graph.vessel_axis`). The stability ladder's ``walk_axis`` rung: at the
   same training it rolled out better than ``history`` on both datasets, guarded, on BendVessel
   (0.11x constant velocity against 0.19x, the clot 0.87 r off against 2.31 r; alone 0.22x) and
-  on ClotEntry (0.03x against 0.20x, 3.1 r against 14.0 r), one seed each
+  on ClotEntry (0.03x against 0.20x, 3.1 r against 14.0 r; a second seed there 0.20x, 14.2 r)
   (``experiments/results/ladder_budget/bendvessel_axis/``, ``.../clotentry_axis/``); in the
   demo's small split it did worse than ``history`` (``experiments/results/demo/``). Its
   features need a dense search: at most 8,192 nodes per sample (``--nodes-per-sample``).
