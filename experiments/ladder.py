@@ -60,7 +60,16 @@ recipe trained with ``--select-by last`` (``robust``, ``robust_guards``: the ``r
 recipe of ``thrombojax train``; ``robust_nohist_guards`` without its history noise); the
 default recipe with the velocity split along and across the local vessel axis
 (``--axis-features 2``: ``walk_axis`` guarded, ``axis_alone`` the same model unguarded,
-``axis_seeds`` / ``axis_ens_guards`` seeds 0 and 1 alone and guarded, each also scored alone).
+``axis_seeds`` / ``axis_ens_guards`` seeds 0 and 1 alone and guarded, each also scored alone;
+``axis_ens3_guards`` seeds 0-2 guarded; ``walk_ens2_guards`` the control, the default
+recipe without the split, seeds 0 and 1 guarded; ``axis_signed`` / ``axis_signed_guards``
+the split with the wall noise and signed wall features of ``wallnoise_signed``;
+``axis_committee`` / ``axis_committee_guards`` / ``axis_committee3_guards`` its seeds rolled
+out as a committee, the members' mean step fed back, alone and guarded; ``follow`` /
+``follow_alone`` the split with the vessel-following prior, guarded and alone;
+``follow_nohist*`` the prior without the history frame, ``follow_histnoise*`` with history
+noise, ``follow_steady*`` without the history frame and trained only on the frames rollouts
+run on, from the dataset's ``skip_frames``).
 ``--transfer DATA`` also rolls every rung out on all simulations of another
 dataset (train on one, evaluate on the other). Every rung trains the same small MeshGraphNet
 (``--size study``: the study's, for an accelerator) for the same wall-clock budget (the epoch
@@ -97,40 +106,14 @@ import shutil
 import sys
 import time
 
-import numpy as np
-
 from thrombojax import study
-from thrombojax.data.augment import subsample_indices
-from thrombojax.data.radius import vessel_radius
-from thrombojax.eval.drift import centroid_speed, direction_carry, history_gain, speed_carry
-from thrombojax.eval.metrics import (
-    centroid_error,
-    fit_vessel_wall,
-    fraction_outside,
-    mse_per_step,
-)
-from thrombojax.eval.single_step import (
-    ensemble_single_step_errors,
-    scaled_simulation,
-    single_step_errors,
-)
-from thrombojax.eval.uncertainty import uncertainty_summary
 from thrombojax.io.hdf5 import open_dataset
 from thrombojax.io.outputs import atomic_write_text
-from thrombojax.models.registry import create_model, identity_stats
-from thrombojax.simulator.ensemble import ensemble_rollout, stack_params
-from thrombojax.simulator.guard_set import build_guards
-from thrombojax.simulator.rollout import (
-    constant_velocity_rollout,
-    guarded_unroll,
-    rollout_with_corrections,
-)
-from thrombojax.simulator.step import make_step
 from thrombojax.train.loop import train
-from thrombojax.train.state import latest_step, load_trained
-from thrombojax.types import clot_mask
+from thrombojax.train.state import latest_step
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))  # the sibling modules
+from ladder_eval import evaluate_runs, members_alone  # noqa: E402
 from ladder_report import write_reports  # noqa: E402
 from ladder_rungs import (  # noqa: E402
     COMMON,
@@ -146,6 +129,8 @@ def _train_rung(rung: Rung, data: str, folder: pathlib.Path, split: dict, minute
                 n_nodes: int | None = None, common: dict = COMMON) -> pathlib.Path:
     run = folder / "run"
     cfg = {**common, **rung.train, **split, "nodes_per_sample": n_nodes}
+    if cfg.get("skip_frames") == "dataset":  # train on the frames rollouts run on only
+        cfg["skip_frames"] = study.skip_frames(open_dataset(data))
     if latest_step(run / "checkpoints" / "last") is not None:
         info = json.loads((run / "config.json").read_text())
         if latest_step(run / "checkpoints" / "best") is not None and \
@@ -197,107 +182,6 @@ def _member_runs(rung: Rung, out: pathlib.Path, data: str, split: dict,
     return runs
 
 
-def _evaluate(runs: list[pathlib.Path], data: str, guards: bool,
-              n_nodes: int | None = None, names: list[str] | None = None,
-              which: str = "best") -> dict:
-    """Roll the runs (one model, or an ensemble; each run's ``which`` checkpoint) out on the
-    simulations ``names`` of ``data`` (default: the first run's test split) and measure them
-    against constant velocity."""
-    members = [load_trained(run, which=which) for run in runs]
-    trained = members[0]
-    ds = open_dataset(data)
-    skip = max(study.skip_frames(ds), 1)
-    r = vessel_radius(ds) / float(trained.scaling.scale)  # one radius, scaled coordinates
-    step, cv = trained.step, make_step(create_model("constant_velocity"))
-    params = [m.params for m in members]
-    per_sim = {}
-    for name in trained.split.test if names is None else names:
-        full, full_nt = scaled_simulation(ds, name, trained.scaling)
-        idx = subsample_indices(0, full_nt, n_nodes or len(full_nt))  # the study's 2,048
-        pos, nt = full[:, idx], full_nt[idx]
-        m1 = ensemble_single_step_errors(step, params, trained.stats, pos, nt)
-        c1 = single_step_errors(cv, {}, identity_stats(), pos, nt)
-        phase = np.arange(1, pos.shape[0] - 1) >= skip
-        n = pos.shape[0] - 1 - skip
-        mask = np.ones(len(nt), bool)
-        g = build_guards(full[0], full_nt, pos[skip], nt, radius=r,
-                         wall_cells=ds[name].wall_cells) if guards else None
-        true = pos[skip + 1:]
-        extra = {}
-        if len(members) == 1:
-            pred, corr = rollout_with_corrections(step, trained.params, trained.stats,
-                                                  step.previous(pos, skip), pos[skip], nt, mask, n,
-                                                  guards=g)
-        else:
-            ens = ensemble_rollout(step, stack_params(params), trained.stats,
-                                   step.previous(pos, skip),
-                                   pos[skip], nt, mask, n,
-                                   rollout_fn=guarded_unroll if g is not None else None,
-                                   context=g)
-            pred, corr = ens.mean, ens.aux or {}
-            extra = {"uncertainty": uncertainty_summary(np.asarray(ens.mean),
-                                                        np.asarray(ens.spread), true, nt,
-                                                        scale=1.0 / r)}
-        pred = np.asarray(pred)
-        base = constant_velocity_rollout(pos[skip - 1], pos[skip], nt, mask, n)
-        clot = clot_mask(nt)
-        wall = fit_vessel_wall(full[0], full_nt, wall_cells=ds[name].wall_cells)
-        mse, mse_cv = mse_per_step(pred, true, clot) / r**2, mse_per_step(base, true, clot) / r**2
-        outside, centroid = fraction_outside(wall, pred, clot), centroid_error(pred, true, clot) / r
-        if len(members) == 1 and step.history >= 2:  # thrombojax.eval.drift
-            extra["history_gain"] = float(history_gain(
-                step, trained.params, trained.stats, pos, nt, np.arange(skip, pos.shape[0] - 1),
-                delta=0.01 * r).mean())
-        if len(members) == 1:
-            extra["speed_carry"] = float(speed_carry(
-                step, trained.params, trained.stats, pos, nt, np.arange(skip, pos.shape[0] - 1),
-                delta=0.05).mean())
-            extra["direction_carry"] = float(direction_carry(
-                step, trained.params, trained.stats, pos, nt, np.arange(skip, pos.shape[0] - 1),
-                angle=0.1).mean())
-        per_sim[name] = {
-            "mse1_all": float(m1.mean()) / r**2, "mse1_all_cv": float(c1.mean()) / r**2,
-            "mse1_phase": float(m1[phase].mean()) / r**2,
-            "mse1_phase_cv": float(c1[phase].mean()) / r**2,
-            "mse10": float(mse[:10].mean()), "mse10_cv": float(mse_cv[:10].mean()),
-            "mse_full": float(mse.mean()), "mse_full_cv": float(mse_cv.mean()),
-            "final_centroid_r": float(centroid[-1]),
-            "final_centroid_cv_r": float(centroid_error(base, true, clot)[-1]) / r,
-            "max_outside": float(outside.max()),
-            "max_outside_cv": float(fraction_outside(wall, base, clot).max()),
-            "max_correction_r": max((float(np.asarray(c).max()) for c in corr.values()),
-                                    default=0.0) / r,
-            "mse_per_step": mse.tolist(), "mse_per_step_cv": mse_cv.tolist(),
-            "outside_per_step": outside.tolist(), "centroid_per_step_r": centroid.tolist(),
-            "speed_per_step_r": (centroid_speed(np.concatenate([pos[skip:skip + 1], pred]), clot)
-                                 / r).tolist(),
-            "speed_true_per_step_r": (centroid_speed(pos[skip:], clot) / r).tolist(),
-            **extra,
-        }
-    keys = [k for k, v in next(iter(per_sim.values())).items()
-            if not k.startswith("mse_per_step") and isinstance(v, float)]
-    mean = {k: float(np.mean([s[k] for s in per_sim.values()])) for k in keys}
-    for k in ("max_outside", "max_outside_cv", "max_correction_r"):
-        mean[k] = float(np.max([s[k] for s in per_sim.values()]))
-    return {"simulations": per_sim, "mean": mean, "skip_frames": skip, "n_nodes": len(idx),
-            "members": len(members),
-            "epochs": json.loads((runs[0] / "config.json").read_text())["train"]["epochs"]}
-
-
-def _members_alone(runs: list[pathlib.Path], data: str, guards: bool,
-                   n_nodes: int | None, which: str = "best") -> list[dict]:
-    """Each member of an ensemble evaluated alone: how much one recipe varies with its seed."""
-    out = []
-    for run in runs:
-        mean = _evaluate([run], data, guards, n_nodes, which=which)["mean"]
-        seed = json.loads((run / "config.json").read_text())["train"]["seed"]
-        out.append({"seed": seed, "mse_full_ratio": mean["mse_full"] / mean["mse_full_cv"],
-                    "final_centroid_r": mean["final_centroid_r"],
-                    "mse1_phase_ratio": mean["mse1_phase"] / mean["mse1_phase_cv"],
-                    "max_outside": mean["max_outside"]})
-    return out
-
-
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -344,16 +228,17 @@ def main(argv: list[str] | None = None) -> int:
                 _train_rung(rung, args.dataset, folder, split, args.minutes, args.max_epochs,
                             args.epochs, args.nodes, common)
             runs = _member_runs(rung, out, args.dataset, split, args.nodes, common)
-            res = _evaluate(runs, args.dataset, rung.guards, args.nodes, which=rung.checkpoint)
+            res = evaluate_runs(runs, args.dataset, rung.guards, args.nodes,
+                                which=rung.checkpoint, committee=rung.committee)
             res.update(rung=dataclasses.asdict(rung) | {"train": {k: str(v) for k, v in
                                                                    rung.train.items()}},
                        seconds=time.perf_counter() - t)
             print(f"  {rung.name}: MSE@full / CV = "
                   f"{res['mean']['mse_full'] / res['mean']['mse_full_cv']:.2f}", flush=True)
-        if rung.members > 1 and "members_alone" not in res:  # also for results made before it
+        if rung.members > 1 and not rung.committee and "members_alone" not in res:
             runs = _member_runs(rung, out, args.dataset, split, args.nodes, common)
-            res["members_alone"] = _members_alone(runs, args.dataset, rung.guards, args.nodes,
-                                                  rung.checkpoint)
+            res["members_alone"] = members_alone(runs, args.dataset, rung.guards, args.nodes,
+                                                 rung.checkpoint)
         elif done.is_file():
             results[rung.name] = res
             continue
@@ -380,8 +265,8 @@ def _transfer(other: pathlib.Path, results: dict, out: pathlib.Path, args, split
             moved[name] = json.loads(path.read_text())
             continue
         runs = _member_runs(rungs[name], out, args.dataset, split, args.nodes, common)
-        moved[name] = _evaluate(runs, str(other), rungs[name].guards, args.nodes, names,
-                                rungs[name].checkpoint)
+        moved[name] = evaluate_runs(runs, str(other), rungs[name].guards, args.nodes, names,
+                                rungs[name].checkpoint, rungs[name].committee)
         atomic_write_text(path, json.dumps(moved[name], indent=1))
     folder = out / f"transfer_{other.stem}"
     folder.mkdir(exist_ok=True)

@@ -8,7 +8,8 @@ import dataclasses
 import numpy as np
 
 __all__ = ["Rung", "RUNGS", "COMMON", "STUDY_SIZE", "SMALL_MGN", "SIGNED", "HISTNOISE",
-           "WALK"]
+           "WALK", "AXIS", "AXIS_SIGNED", "FOLLOW", "FOLLOW_NOHIST",
+           "FOLLOW_HISTNOISE", "FOLLOW_STEADY"]
 
 SMALL_MGN = {"hidden": 32, "processor_size": 5, "max_neighbors": 12}
 _SCHEDULE = {"max_rotation": 0.0, "warmup_epochs": 2.0}
@@ -45,6 +46,21 @@ NOHIST_ROLLOUT = {**SIGNED, "speed_noise": 0.1, "direction_noise": 0.1, "select_
 # checkpoint (``--select-by last``): ``thrombojax train --recipe robust``
 DIRSPEED_LAST = {**DIRSPEED, "select_by": "last"}
 AXIS = {**WALK, "axis_features": 2.0}  # the default recipe + vessel-axis velocity split
+# it with the wall noise and signed wall features of SIGNED: told along the vessel where to go,
+# and across it where the wall is and that a node crossed it (rungs ``axis_signed``)
+AXIS_SIGNED = {**SIGNED, "axis_features": 2.0}
+# it with the vessel-following prior: the step moves the clot along the vessel at its speed
+# and the model learns the rest (rungs ``follow``, ``follow_alone``)
+FOLLOW = {**AXIS, "follow_axis": 2.0}
+# it without the history frame (the model cannot carry its last acceleration over: with the
+# history, ``history_gain`` 0.94-1.07 and the clot sped up along the vessel), and it with the
+# history kept but its clot-wide acceleration noised (history noise 0.02 r)
+FOLLOW_NOHIST = {**FOLLOW, "history": 1}
+FOLLOW_HISTNOISE = {**FOLLOW, "history_noise": 0.02}
+# the prior without the history frame, trained only on the frames rollouts run on (windows
+# from the dataset's ``skip_frames`` on: the start from rest, which the model cannot tell
+# from the steady slide without the history, left out)
+FOLLOW_STEADY = {**FOLLOW_NOHIST, "skip_frames": "dataset"}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -57,6 +73,7 @@ class Rung:
     reuse: str | None = None  # evaluate another rung's trained model
     members: int = 1  # > 1: a deep ensemble; member 0 is ``reuse``'s model, the others seeds 1..
     checkpoint: str = "best"  # which checkpoint of each run is evaluated ("best" or "last")
+    committee: bool = False  # roll the members out as a committee (their mean step fed back)
 
 
 RUNGS: tuple[Rung, ...] = (
@@ -179,4 +196,29 @@ RUNGS: tuple[Rung, ...] = (
     # seeds 0 and 1 of it (each member also scored alone: the seed spread), alone and guarded
     Rung("axis_seeds", AXIS, reuse="walk_axis", members=2),
     Rung("axis_ens_guards", AXIS, guards=True, reuse="walk_axis", members=2),
+    # seeds 0-2 of it guarded (member 2 the third seed; each member also scored alone), and the
+    # default recipe's seeds 0 and 1 guarded (the control: does the axis split's gain repeat?)
+    Rung("axis_ens3_guards", AXIS, guards=True, reuse="walk_axis", members=3),
+    Rung("walk_ens2_guards", WALK, guards=True, reuse="history_walk", members=2),
+    # the split with wall noise and signed wall features, alone and guarded
+    Rung("axis_signed", AXIS_SIGNED),
+    Rung("axis_signed_guards", AXIS_SIGNED, guards=True, reuse="axis_signed"),
+    # seeds 0 and 1 (0-2) of the split as a committee: every step the members' mean
+    # prediction, guarded, is fed back to all (thrombojax.simulator.committee), alone and guarded
+    Rung("axis_committee", AXIS, reuse="walk_axis", members=2, committee=True),
+    Rung("axis_committee_guards", AXIS, guards=True, reuse="walk_axis", members=2,
+         committee=True),
+    Rung("axis_committee3_guards", AXIS, guards=True, reuse="walk_axis", members=3,
+         committee=True),
+    # the split with the vessel-following prior, guarded and alone
+    Rung("follow", FOLLOW, guards=True),
+    Rung("follow_alone", FOLLOW, reuse="follow"),
+    # the prior without the history frame, and with history noise, guarded and alone
+    Rung("follow_nohist", FOLLOW_NOHIST, guards=True),
+    Rung("follow_nohist_alone", FOLLOW_NOHIST, reuse="follow_nohist"),
+    Rung("follow_histnoise", FOLLOW_HISTNOISE, guards=True),
+    Rung("follow_histnoise_alone", FOLLOW_HISTNOISE, reuse="follow_histnoise"),
+    # the prior without the history frame, trained on the rollout phase only
+    Rung("follow_steady", FOLLOW_STEADY, guards=True),
+    Rung("follow_steady_alone", FOLLOW_STEADY, reuse="follow_steady"),
 )

@@ -305,3 +305,63 @@ def test_member_chunks_and_custom_member_rollout():
                                np.clip(np.asarray(whole.members), -box, box), atol=1e-6)
     with pytest.raises(ConfigError):
         ensemble_rollout(model, stack, stats, x_prev, x_cur, node_type, mask, 5, member_batch=0)
+
+
+def _fixed_frames(step, params, stats, x_prev, x0, node_type, mask, n_steps, context):
+    """A member 'rollout' that holds the member's own frame ``params['x']`` for every step."""
+    del step, stats, x_prev, x0, node_type, mask, context
+    return jnp.broadcast_to(params["x"], (n_steps, *params["x"].shape))
+
+
+def test_guard_mean_puts_the_mean_of_two_members_in_a_bend_back_inside():
+    """Two members inside a bent vessel (a unit tube on a circle of radius 4), one clot 45
+    degrees before the middle of the bend and one 45 degrees after: their mean cuts the corner
+    and lies outside (guard_mean off); the guarded mean is inside, its correction is recorded,
+    and members, spread and vessel nodes are untouched."""
+    from thrombojax.simulator.guard_set import build_guards
+    from thrombojax.simulator.walls import fraction_outside_wall
+
+    def on_bend(phi, radial, z):  # the point at bend angle phi, radial and z off the axis
+        r = 4.0 + radial
+        return np.stack([r * np.cos(phi), r * np.sin(phi), z], -1)
+
+    phi, ang = np.meshgrid(np.linspace(-np.pi / 2, np.pi / 2, 61),
+                           np.linspace(0, 2 * np.pi, 24, endpoint=False))
+    wall = on_bend(phi.ravel(), np.cos(ang.ravel()), np.sin(ang.ravel()))
+    rng = np.random.default_rng(0)
+    blob = rng.uniform(-0.3, 0.3, (20, 3))
+    clot_a = on_bend(-np.pi / 4 + blob[:, 0] / 4, blob[:, 1], blob[:, 2])
+    clot_b = on_bend(np.pi / 4 + blob[:, 0] / 4, blob[:, 1], blob[:, 2])
+    node_type = np.array([NodeType.CLOT] * 20 + [NodeType.VESSEL] * len(wall), np.int32)
+    xa = np.concatenate([clot_a, wall]).astype(np.float32)
+    xb = np.concatenate([clot_b, wall]).astype(np.float32)
+    mask = np.ones(len(xa), bool)
+    a, q = np.meshgrid(np.arange(24), np.arange(60), indexing="ij")  # the wall's triangles
+    corner = lambda da, dq: 20 + ((a + da) % 24) * 61 + q + dq  # noqa: E731
+    cells = np.concatenate([np.stack([corner(0, 0), corner(0, 1), corner(1, 1)], -1),
+                            np.stack([corner(0, 0), corner(1, 1), corner(1, 0)], -1)])
+    guards = build_guards(xa, node_type, xa, node_type, radius=1.0, coherence=False,
+                          wall_cells=cells.reshape(-1, 3))
+    stack = stack_params([{"x": jnp.asarray(xa)}, {"x": jnp.asarray(xb)}])
+    stats = rollout_state(8)[-1]
+    kw = dict(rollout_fn=_fixed_frames, context=guards)
+    free = ensemble_rollout(FakeSurrogate(), stack, stats, xa, xa, node_type, mask, 3, **kw)
+    held = ensemble_rollout(FakeSurrogate(), stack, stats, xa, xa, node_type, mask, 3,
+                            guard_mean=True, **kw)
+    clot = jnp.asarray(node_type == NodeType.CLOT)
+
+    def outside(frames):
+        return max(float(fraction_outside_wall(jnp.asarray(f), clot, guards.wall))
+                   for f in frames)
+
+    assert outside(free.members[0]) == 0.0 and outside(free.members[1]) == 0.0
+    assert outside(free.mean) > 0.9 and outside(held.mean) == 0.0
+    assert free.mean_corrections is None
+    moved = np.asarray(held.mean_corrections["containment"])
+    assert moved.shape == (3, len(xa)) and moved[:, :20].max() > 0.1 and moved[:, 20:].max() == 0
+    np.testing.assert_array_equal(np.asarray(held.mean)[:, 20:], np.asarray(free.mean)[:, 20:])
+    np.testing.assert_array_equal(np.asarray(held.members), np.asarray(free.members))
+    np.testing.assert_array_equal(np.asarray(held.spread), np.asarray(free.spread))
+    with pytest.raises(ConfigError, match="guard_mean needs"):
+        ensemble_rollout(FakeSurrogate(), stack, stats, xa, xa, node_type, mask, 3,
+                         rollout_fn=_fixed_frames, guard_mean=True)

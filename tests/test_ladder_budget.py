@@ -91,7 +91,7 @@ def test_members_alone_reports_every_seed(tmp_path, monkeypatch):
     the table gets one `Seeds:` line with those numbers (experiments/ladder_report.py)."""
     import json
 
-    ladder = _ladder(monkeypatch)
+    _ladder(monkeypatch)
     runs = []
     for seed, ratio in ((0, 0.5), (1, 3.0)):
         run = tmp_path / f"m{seed}" / "run"
@@ -109,10 +109,11 @@ def test_members_alone_reports_every_seed(tmp_path, monkeypatch):
         return {"mean": {"mse_full": x, "mse_full_cv": 1.0, "final_centroid_r": 10 * x,
                          "mse1_phase": 0.5, "mse1_phase_cv": 1.0, "max_outside": 0.0}}
 
-    monkeypatch.setattr(ladder, "_evaluate", fake_evaluate)
-    alone = ladder._members_alone([r for r, _ in runs], "d.h5", True, None)
+    measure = sys.modules["ladder_eval"]  # imported by the ladder script
+    monkeypatch.setattr(measure, "evaluate_runs", fake_evaluate)
+    alone = measure.members_alone([r for r, _ in runs], "d.h5", True, None)
     assert [m["seed"] for m in alone] == [0, 1] and asked == ["best", "best"]
-    ladder._members_alone([r for r, _ in runs], "d.h5", True, None, "last")
+    measure.members_alone([r for r, _ in runs], "d.h5", True, None, "last")
     assert asked[2:] == ["last", "last"]  # a rung's checkpoint="last" reaches every member
     assert [m["mse_full_ratio"] for m in alone] == [0.5, 3.0]
     report = sys.modules["ladder_report"]  # imported by the ladder script
@@ -158,7 +159,8 @@ def test_transfer_evaluates_every_rung_on_every_simulation_of_the_other_dataset(
     def fake_member_runs(rung, out_, data, split, n_nodes, common=None):
         return [out_ / rung.name / "run"] * rung.members
 
-    def fake_evaluate(runs, data, guards, n_nodes=None, names=None, which="best"):
+    def fake_evaluate(runs, data, guards, n_nodes=None, names=None, which="best",
+                      committee=False):
         calls.append((len(runs), data, guards, names))
         return {"mean": {"mse1_all": 1.0, "mse1_all_cv": 2.0, "mse1_phase": 1.0,
                          "mse1_phase_cv": 2.0, "mse10": 0.1, "mse_full": 0.5,
@@ -168,7 +170,7 @@ def test_transfer_evaluates_every_rung_on_every_simulation_of_the_other_dataset(
                 "simulations": {}, "epochs": 3}
 
     monkeypatch.setattr(ladder, "_member_runs", fake_member_runs)
-    monkeypatch.setattr(ladder, "_evaluate", fake_evaluate)
+    monkeypatch.setattr(ladder, "evaluate_runs", fake_evaluate)
     report = sys.modules["ladder_report"]
     monkeypatch.setattr(report, "plot_error_per_step", lambda *a, **k: None)
     for name in ("speed03_guards", "speed03_seeds"):
@@ -182,3 +184,26 @@ def test_transfer_evaluates_every_rung_on_every_simulation_of_the_other_dataset(
     assert "speed03_guards" in text and (out / "transfer_other" / "table.md").is_file()
     ladder._transfer(other, results, out, args, {}, {})
     assert len(calls) == 2  # reused, not evaluated again
+
+
+def test_a_rung_trained_on_the_rollout_phase_reads_the_skip_from_the_dataset(tmp_path,
+                                                                               monkeypatch):
+    """`follow_steady` asks for `skip_frames="dataset"`: the ladder trains it with the
+    dataset's own skip_frames attribute (its windows start where rollouts start), and a rung
+    without it keeps the TrainConfig default."""
+    from dataset_factory import make_simulation
+
+    from thrombojax.io.writer import write_dataset
+
+    ladder = _ladder(monkeypatch)
+    data = write_dataset(tmp_path / "d.h5", [make_simulation(f"s{i}", n_frames=6, seed=i)
+                                             for i in range(2)],
+                         name="tiny", source="tests", skip_frames=3)
+    calls = []
+    monkeypatch.setattr(ladder, "train", lambda d, m, out, **kw: calls.append(kw))
+    rungs = {r.name: r for r in ladder.RUNGS}
+    assert rungs["follow_steady"].train["skip_frames"] == "dataset"
+    ladder._train_rung(rungs["follow_steady"], str(data), tmp_path / "a", {}, 1.0, 3, epochs=2)
+    ladder._train_rung(rungs["follow_nohist"], str(data), tmp_path / "b", {}, 1.0, 3, epochs=2)
+    assert calls[0]["skip_frames"] == 3 and calls[0]["history"] == 1
+    assert "skip_frames" not in calls[1]

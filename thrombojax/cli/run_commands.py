@@ -129,6 +129,10 @@ def _add_train(sub) -> None:
     p.add_argument("--axis-features", type=NN_FLOAT, help="give clot nodes their velocity "
                    "split along and across the local vessel axis (from the wall's normals "
                    "within about this many vessel radii; default 0: off)")
+    p.add_argument("--follow-axis", type=NN_FLOAT, help="the step's prior moves each clot "
+                   "node along the vessel at its current speed (axis from the wall's normals "
+                   "within about this many vessel radii) and the model learns the rest "
+                   "(default 0: the prior is constant velocity)")
     p.add_argument("--wall-signed", action="store_true", default=None, help="with "
                    "--wall-features: the features are the signed distance to the wall "
                    "(positive outside) and its outward normal, which tell a node that crossed "
@@ -158,7 +162,7 @@ def _run_train(args) -> int:
              "curriculum_epochs", "frame", "wall_features", "history", "noise_walk",
              "stop_history_gradient", "noise_shared", "wall_noise", "wall_signed",
              "history_noise", "speed_noise", "direction_noise", "time_scale", "select_by",
-             "axis_features")
+             "axis_features", "follow_axis")
     overrides = {k: getattr(args, k) for k in names if getattr(args, k) is not None}
     from thrombojax.train.recipes import DEFAULT_RECIPE, recipe
 

@@ -56,7 +56,8 @@ class RolloutResult:
         curves: label -> {"mse", "centroid_error", "fraction_outside"} ``[n_steps]`` arrays,
             labels: the model's name, "constant velocity", and "ground truth" (containment only).
         summary: JSON-ready horizon MSEs and final values per label (with guards: the largest
-            correction of each guard, ``max_guard_<name>``).
+            correction of each guard, ``max_guard_<name>``; an ensemble's guarded mean also
+            ``max_guard_mean_<name>``, how far the guards moved the mean).
         spread: ``[n_steps, n]`` per-node spread of an ensemble rollout (``None`` otherwise).
     """
 
@@ -134,10 +135,12 @@ def rollout_simulation(
     if ensemble:
         ens = ensemble_rollout(model, params, stats, x_prev, x0, sub_type, mask, n_steps,
                                rollout_fn=None if guards is None else guarded_unroll,
-                               context=guards)
+                               context=guards, guard_mean=guards is not None)
         pred, spread = np.asarray(ens.mean), np.asarray(ens.spread)
-        corrections = {} if ens.aux is None else {
+        corrections = {} if ens.aux is None else {  # the largest over members, and the mean's
             k: np.asarray(v).max(axis=0) for k, v in ens.aux.items()}
+        corrections |= {f"mean_{k}": np.asarray(v)
+                        for k, v in (ens.mean_corrections or {}).items()}
     else:
         if step.grid is None:  # the grid where it pays, sized from the frames rolled out
             step = allocate_grid(step, positions[t0 - 1:t0 + 1 + n_steps][:, idx], sub_type)

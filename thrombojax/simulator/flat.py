@@ -140,6 +140,7 @@ class FlatStep:
             frame = step.frame_of(c, t, m)
             if frame is not None:
                 accel = frame.vectors_to_global(accel)
+            accel = accel + step.prior(step.last_previous(p), c, t, m)
             return integrate(p, c, accel, t, m)
 
         positions = jax.vmap(finish)(out, x_prev, x_cur, node_type, mask)

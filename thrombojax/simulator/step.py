@@ -72,7 +72,7 @@ from thrombojax.errors import ConfigError
 from thrombojax.graph.frame import FRAMES, VesselFrame, vessel_frame
 from thrombojax.graph.grid import GridSpec
 from thrombojax.graph.neighbors import graph_overflow
-from thrombojax.graph.vessel_axis import axis_velocity_features
+from thrombojax.graph.vessel_axis import axis_velocity_features, follow_axis_offset
 from thrombojax.graph.wall_nodes import signed_wall_features, wall_node_features
 from thrombojax.models.registry import Surrogate
 from thrombojax.types import ModelInput, TargetStats, clot_mask
@@ -180,6 +180,9 @@ class LearnedStep:
         axis_radius: width in scaled units of the vessel-axis features, the velocity split
             along and across the local vessel axis
             (:func:`thrombojax.graph.vessel_axis.axis_velocity_features`; 0: none).
+        prior_radius: > 0: the step's prior is the velocity turned onto the vessel's axis
+            (:func:`thrombojax.graph.vessel_axis.follow_axis_offset`, this axis width, scaled)
+            and the model learns the rest; 0: the prior is constant velocity.
     """
 
     model: Surrogate
@@ -190,6 +193,7 @@ class LearnedStep:
     history: int = 1
     stop_history_gradient: bool = False
     axis_radius: float = 0.0
+    prior_radius: float = 0.0
 
     def __post_init__(self) -> None:
         if self.frame not in FRAMES:
@@ -198,9 +202,10 @@ class LearnedStep:
         if not (self.wall_cutoff >= 0 and self.wall_cutoff < float("inf")):
             raise ConfigError(f"learned step: wall_cutoff must be a finite number >= 0, "
                               f"got {self.wall_cutoff!r}")
-        if not (self.axis_radius >= 0 and self.axis_radius < float("inf")):
-            raise ConfigError(f"learned step: axis_radius must be a finite number >= 0, "
-                              f"got {self.axis_radius!r}")
+        for name in ("axis_radius", "prior_radius"):
+            if not (getattr(self, name) >= 0 and getattr(self, name) < float("inf")):
+                raise ConfigError(f"learned step: {name} must be a finite number >= 0, "
+                                  f"got {getattr(self, name)!r}")
         if not isinstance(self.history, int) or isinstance(self.history, bool) or \
                 self.history < 1:
             raise ConfigError(f"learned step: history must be an int >= 1 (frames before t), "
@@ -297,6 +302,13 @@ class LearnedStep:
             inputs = inputs.replace(extra=jnp.concatenate(extra, axis=-1))
         return inputs
 
+    def prior(self, x_last, x_cur, node_type, mask) -> jax.Array | float:
+        """What the step adds to constant velocity before the model's acceleration: the
+        vessel-following offset (``prior_radius > 0``) or 0; ``x_last`` is s_{t-1}."""
+        if self.prior_radius <= 0:
+            return 0.0
+        return follow_axis_offset(x_last, x_cur, node_type, mask, radius=self.prior_radius)
+
     def normalized_target(
         self, stats: TargetStats, accel: jax.Array, x_ref: jax.Array, node_type: jax.Array,
         mask: jax.Array,
@@ -336,6 +348,7 @@ class LearnedStep:
         accel = stats.denormalize(out)
         if frame is not None:
             accel = frame.vectors_to_global(accel)
+        accel = accel + self.prior(self.last_previous(x_prev), x_cur, node_type, mask)
         x_next = integrate(self.last_previous(x_prev), x_cur, accel, node_type, mask)
         return StepOutput(positions=x_next, output=out, overflow=graph_overflow(graph))
 
@@ -358,14 +371,16 @@ def _init(step: LearnedStep, rng, x_prev, x_cur, node_type, mask) -> dict:
 def make_step(model: Surrogate, frame: str = "global", wall_cutoff: float = 0.0,
               grid: GridSpec | None = None, history: int = 1,
               stop_history_gradient: bool = False, wall_signed: bool = False,
-              axis_radius: float = 0.0) -> LearnedStep:
+              axis_radius: float = 0.0, prior_radius: float = 0.0) -> LearnedStep:
     """The learned simulator of a surrogate in ``frame``, with wall features when
-    ``wall_cutoff > 0``, vessel-axis features when ``axis_radius > 0``, the cell ``grid``
+    ``wall_cutoff > 0``, vessel-axis features when ``axis_radius > 0``, the vessel-following
+    prior when ``prior_radius > 0``, the cell ``grid``
     where it pays and ``history`` previous frames (see the module docstring and
     :class:`LearnedStep`)."""
     return LearnedStep(model=model, frame=frame, wall_cutoff=float(wall_cutoff), grid=grid,
                        history=history, stop_history_gradient=bool(stop_history_gradient),
-                       wall_signed=bool(wall_signed), axis_radius=float(axis_radius))
+                       wall_signed=bool(wall_signed), axis_radius=float(axis_radius),
+                       prior_radius=float(prior_radius))
 
 
 def past_accelerations(x_prev: jax.Array, x_cur: jax.Array, mask: jax.Array,

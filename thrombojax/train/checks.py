@@ -33,6 +33,7 @@ _RULES: dict[str, tuple[str, float, bool, bool]] = {
     "noise_std": ("float", 0.0, True, False),
     "wall_features": ("float", 0.0, True, False),
     "axis_features": ("float", 0.0, True, False),
+    "follow_axis": ("float", 0.0, True, False),
     "noise_gamma": ("float", 0.0, True, False),
     "noise_shared": ("float", 0.0, True, False),
     "wall_noise": ("float", 0.0, True, False),
@@ -115,11 +116,11 @@ def check_train_values(cfg: Any) -> None:
 
 def check_dense_inputs(cfg, budget: int, where: str = "") -> None:
     """Refuse, before training, a sample too large for the dense wall search that signed wall
-    features, wall noise and vessel-axis features use
+    features, wall noise, vessel-axis features and the vessel-following prior use
     (:data:`thrombojax.graph.wall_nodes.DENSE_PLANE_NODES` nodes)."""
     from thrombojax.graph.wall_nodes import DENSE_PLANE_NODES
 
-    used = [f"--{n.replace('_', '-')}" for n in ("axis_features", "wall_noise")
+    used = [f"--{n.replace('_', '-')}" for n in ("axis_features", "follow_axis", "wall_noise")
             if getattr(cfg, n, 0.0) > 0]
     if getattr(cfg, "wall_signed", False):
         used.append("--wall-signed")

@@ -107,6 +107,10 @@ class TrainConfig:
         axis_features: width, in vessel radii, of the local vessel axis's neighbourhood: clot
             nodes' inputs get their velocity split along and across the vessel's axis
             (0: off; :func:`thrombojax.graph.vessel_axis.axis_velocity_features`).
+        follow_axis: width, in vessel radii, of the vessel axis of the step's prior: > 0, the
+            step moves each clot node along the vessel at its current speed
+            (:func:`thrombojax.graph.vessel_axis.follow_axis_offset`) and the model learns the
+            rest (the target statistics stay those of the acceleration); 0: constant velocity.
         history: frames before t the learned step reads (1: the velocity alone; H >= 2: also
             the H - 1 accelerations before t, :mod:`thrombojax.simulator.step`); windows grow
             by H - 1 frames.
@@ -156,6 +160,7 @@ class TrainConfig:
     frame: str = "global"
     wall_features: float = 0.0
     axis_features: float = 0.0
+    follow_axis: float = 0.0
     wall_signed: bool = False
     history: int = 1
     stop_history_gradient: bool = False

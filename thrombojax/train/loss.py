@@ -145,9 +145,13 @@ def _terms(step, stats, frames, node_type, mask, positions, outputs):
     k, h = positions.shape[0], step.history
     states = jnp.concatenate([frames[:h + 1], positions[:-1]])  # s_{t-h}, ..., s^_{t+k-1}
     truth = frames[h + 1:h + 1 + k]
-    target = step.normalized_target(
-        stats, target_acceleration(states[h - 1:h - 1 + k], states[h:h + k], truth),
-        frames[h], node_type, mask)
+    last, cur = states[h - 1:h - 1 + k], states[h:h + k]
+    # a loop over the k (static, small) steps, not a vmap: the evaluation step with the prior's
+    # eigendecompositions vmapped here hung inside XLA on BendVessel (CPU, jax 0.10.2)
+    prior = jnp.stack([step.prior(last[i], cur[i], node_type, mask) + jnp.zeros_like(cur[i])
+                       for i in range(k)])
+    target = step.normalized_target(  # the model learns what the step's prior leaves
+        stats, target_acceleration(last, cur, truth) - prior, frames[h], node_type, mask)
     clot = clot_mask(node_type, mask)[None, :, None]
     loss_sq = jnp.where(clot, (outputs - target) ** 2, 0.0).mean(axis=(0, 2))
     mse_sq = jnp.where(clot, (positions - truth) ** 2, 0.0).mean(axis=(0, 2))
