@@ -36,7 +36,7 @@ from thrombojax.data.augment import subsample_indices
 from thrombojax.data.radius import vessel_radius
 from thrombojax.eval.metrics import centroid_error, fit_vessel_wall, fraction_outside, mse_per_step
 from thrombojax.eval.tables import environment, markdown_table
-from thrombojax.graph.vessel_axis import vessel_axis
+from thrombojax.graph.vessel_axis import axis_speed_velocity, vessel_axis
 from thrombojax.io.hdf5 import open_dataset
 from thrombojax.io.outputs import atomic_write_text, check_targets
 from thrombojax.simulator.guard_set import build_guards
@@ -53,7 +53,7 @@ def next_velocity(rule: str, v: jax.Array, t: jax.Array, clot: jax.Array) -> jax
     if rule == "axis part only":
         new = along * t
     elif rule == "axis speed, per node":
-        new = jnp.where(along < 0, -1.0, 1.0) * jnp.linalg.norm(v, axis=-1, keepdims=True) * t
+        new = axis_speed_velocity(v, t)
     elif rule == "axis speed, rigid":
         w = clot[:, None].astype(v.dtype)
         big_v = jnp.sum(w * v, axis=0) / jnp.maximum(w.sum(), 1.0)
@@ -82,6 +82,9 @@ def roll(rule: str, x_prev, x0, node_type, n_steps: int, axis_radius: float, gua
     return jax.lax.scan(body, (x_prev, x0), None, length=n_steps)[1]
 
 
+_roll = jax.jit(roll, static_argnums=(0, 4, 5))  # one compilation per rule, length, guards
+
+
 def measure(ds, name: str, n_nodes: int | None, axis_radius_r: float) -> dict:
     """Every rule alone and guarded on one simulation: MSE@full (r^2) and its ratio to CV,
     final centroid error (r), max fraction of the clot outside."""
@@ -100,7 +103,7 @@ def measure(ds, name: str, n_nodes: int | None, axis_radius_r: float) -> dict:
     rows = {}
     for rule in RULES:
         for guarded in (False, True):
-            pred = np.asarray(jax.jit(roll, static_argnums=(0, 4, 5))(
+            pred = np.asarray(_roll(
                 rule, jnp.asarray(pos[skip - 1]), jnp.asarray(pos[skip]), jnp.asarray(nt), n,
                 axis_radius_r * r, guards if guarded else None))
             rows[f"{rule}{', guarded' if guarded else ''}"] = {

@@ -29,7 +29,7 @@ import jax.numpy as jnp
 from thrombojax.graph.wall_nodes import local_wall_plane
 from thrombojax.types import NodeType, clot_mask
 
-__all__ = ["vessel_axis", "axis_velocity_features", "follow_axis_offset"]
+__all__ = ["vessel_axis", "axis_velocity_features", "axis_speed_velocity", "follow_axis_offset"]
 
 
 def vessel_axis(
@@ -82,6 +82,15 @@ def axis_velocity_features(
     return jnp.where(clot_mask(node_type, mask)[:, None], feats, 0.0)
 
 
+def axis_speed_velocity(v: jax.Array, t: jax.Array) -> jax.Array:
+    """``[N, 3]``: each velocity ``v_i`` turned onto its axis ``t_i`` at its speed,
+    ``|v_i| sign(v_i . t_i) t_i`` (forward along the axis, whichever sign ``t_i`` has; the
+    speed's gradient is defined at rest)."""
+    along = jnp.sum(v * t, axis=-1, keepdims=True)
+    speed = jnp.sqrt(jnp.maximum(jnp.sum(v * v, axis=-1, keepdims=True), 1e-30))
+    return jnp.where(along < 0, -speed, speed) * t
+
+
 def follow_axis_offset(
     x_prev: jax.Array, x_cur: jax.Array, node_type: jax.Array, mask: jax.Array, *,
     radius: float,
@@ -101,8 +110,6 @@ def follow_axis_offset(
     """
     t = vessel_axis(x_cur, node_type, mask, radius=radius)
     v = x_cur - x_prev
-    along = jnp.sum(v * t, axis=-1, keepdims=True)
-    speed = jnp.sqrt(jnp.maximum(jnp.sum(v * v, axis=-1, keepdims=True), 1e-30))
-    offset = jnp.where(along < 0, -speed, speed) * t - v
+    offset = axis_speed_velocity(v, t) - v
     defined = jnp.sum(t * t, axis=-1, keepdims=True) > 0.5
     return jnp.where(clot_mask(node_type, mask)[:, None] & defined, offset, 0.0)

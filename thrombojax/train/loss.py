@@ -146,10 +146,11 @@ def _terms(step, stats, frames, node_type, mask, positions, outputs):
     states = jnp.concatenate([frames[:h + 1], positions[:-1]])  # s_{t-h}, ..., s^_{t+k-1}
     truth = frames[h + 1:h + 1 + k]
     last, cur = states[h - 1:h - 1 + k], states[h:h + k]
-    # a loop over the k (static, small) steps, not a vmap: the evaluation step with the prior's
-    # eigendecompositions vmapped here hung inside XLA on BendVessel (CPU, jax 0.10.2)
-    prior = jnp.stack([step.prior(last[i], cur[i], node_type, mask) + jnp.zeros_like(cur[i])
-                       for i in range(k)])
+    # the step's prior (0 without one); a loop over the k (static, small) steps, not a vmap:
+    # the prior's eigendecompositions vmapped here hung inside XLA on BendVessel (CPU, jax
+    # 0.10.2). With k = 1 XLA merges it with the step's own (same inputs: one computation).
+    prior = 0.0 if step.prior_radius <= 0 else jnp.stack(
+        [step.prior(last[i], cur[i], node_type, mask) for i in range(k)])
     target = step.normalized_target(  # the model learns what the step's prior leaves
         stats, target_acceleration(last, cur, truth) - prior, frames[h], node_type, mask)
     clot = clot_mask(node_type, mask)[None, :, None]
