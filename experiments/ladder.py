@@ -162,10 +162,24 @@ def _finished(run: pathlib.Path, total_steps: int) -> bool:
     return any(json.loads(ln).get("step") == total_steps for ln in lines if ln.strip())
 
 
+def _member_folder(rung: Rung, out: pathlib.Path, seed: int) -> pathlib.Path:
+    """Where member ``seed`` of an ensemble rung is trained. Members of rungs that reuse the
+    same rung with the same recipe are the same trainings, so they live beside the reused
+    rung (``out/<reused>/member_<seed>``) and are trained once, whichever rung asks first;
+    a rung whose recipe differs from the reused rung's keeps its own
+    (``out/<rung>/member_<seed>``), as does a member an earlier ladder trained there."""
+    own = out / rung.name / f"member_{seed}"
+    base = next((r for r in RUNGS if r.name == rung.reuse), None)
+    if (own / "run").exists() or base is None or base.train != rung.train:
+        return own
+    return out / base.name / f"member_{seed}"
+
+
 def _member_runs(rung: Rung, out: pathlib.Path, data: str, split: dict,
                  n_nodes: int | None, common: dict = COMMON) -> list[pathlib.Path]:
     """The runs a rung evaluates: its own (or ``reuse``'s), plus for an ensemble members
-    1 .. M-1 trained with the same recipe and epochs as member 0 and seeds 1 .. M-1."""
+    1 .. M-1 trained with the same recipe and epochs as member 0 and seeds 1 .. M-1 (in
+    :func:`_member_folder`, shared by the rungs that reuse the same rung and recipe)."""
     first = out / rung.reuse / "run" if rung.reuse else out / rung.name / "run"
     if not (first / "config.json").is_file():
         raise SystemExit(f"ladder: rung {rung.name!r} needs rung {rung.reuse!r} trained first "
@@ -173,7 +187,7 @@ def _member_runs(rung: Rung, out: pathlib.Path, data: str, split: dict,
     runs = [first]
     epochs = json.loads((first / "config.json").read_text())["train"]["epochs"]
     for seed in range(1, rung.members):
-        folder = out / rung.name / f"member_{seed}"
+        folder = _member_folder(rung, out, seed)
         folder.mkdir(parents=True, exist_ok=True)
         member = dataclasses.replace(rung, name=f"{rung.name} member {seed}",
                                      train={**rung.train, "seed": seed})

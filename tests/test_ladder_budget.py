@@ -62,8 +62,9 @@ def test_ensemble_rung_trains_members_like_the_reused_rung(tmp_path, monkeypatch
     runs = ladder._member_runs(rung, tmp_path, "data.h5", {"test_sims": ["a"]}, None)
     assert runs[0] == first and len(runs) == rung.members
     reused = next(r for r in ladder.RUNGS if r.name == rung.reuse)
+    assert reused.train == rung.train  # so the members live beside the reused rung's run
     for seed, (out, kw) in enumerate(calls, start=1):
-        assert out == tmp_path / rung.name / f"member_{seed}" / "run" == runs[seed]
+        assert out == tmp_path / rung.reuse / f"member_{seed}" / "run" == runs[seed]
         assert kw["seed"] == seed and kw["epochs"] == 4 and kw["test_sims"] == ["a"]
         assert {k: kw[k] for k in reused.train} == reused.train  # the same recipe
 
@@ -207,3 +208,41 @@ def test_a_rung_trained_on_the_rollout_phase_reads_the_skip_from_the_dataset(tmp
     ladder._train_rung(rungs["follow_nohist"], str(data), tmp_path / "b", {}, 1.0, 3, epochs=2)
     assert calls[0]["skip_frames"] == 3 and calls[0]["history"] == 1
     assert "skip_frames" not in calls[1]
+
+
+def test_rungs_that_reuse_one_rung_share_its_members(tmp_path, monkeypatch):
+    """Two ensemble rungs over the same rung and recipe (guarded and alone) train each seed
+    once; a rung with another recipe, and a member an earlier ladder trained in the rung's own
+    folder, keep their own."""
+    import json
+
+    ladder = _ladder(monkeypatch)
+    calls = []
+
+    def fake_train(data, model, out, **kw):
+        out = pathlib.Path(out)
+        calls.append(out)
+        for which in ("best", "last"):
+            (out / "checkpoints" / which).mkdir(parents=True)
+        (out / "config.json").write_text(json.dumps({"total_steps": 1}))
+
+    monkeypatch.setattr(ladder, "train", fake_train)
+    monkeypatch.setattr(ladder, "latest_step", lambda folder: 1 if folder.is_dir() else None)
+    monkeypatch.setattr(ladder, "_finished", lambda run, total: True)
+    rungs = {r.name: r for r in ladder.RUNGS}
+    alone, guarded = rungs["axis_seeds"], rungs["axis_ens_guards"]
+    assert alone.reuse == guarded.reuse == "walk_axis" and alone.train == guarded.train
+    first = tmp_path / "walk_axis" / "run"
+    first.mkdir(parents=True)
+    (first / "config.json").write_text(json.dumps({"train": {"epochs": 3}}))
+    runs_alone = ladder._member_runs(alone, tmp_path, "data.h5", {}, None)
+    runs_guarded = ladder._member_runs(guarded, tmp_path, "data.h5", {}, None)
+    assert calls == [tmp_path / "walk_axis" / "member_1" / "run"]  # trained once
+    assert runs_alone == runs_guarded == [first, calls[0]]
+
+    other = rungs["dirspeed_last_seeds"]  # its recipe differs from the reused rung's
+    assert rungs[other.reuse].train != other.train
+    assert ladder._member_folder(other, tmp_path, 1) == tmp_path / other.name / "member_1"
+    old = tmp_path / guarded.name / "member_2" / "run"
+    old.mkdir(parents=True)  # an earlier ladder's layout is used where it exists
+    assert ladder._member_folder(guarded, tmp_path, 2) == old.parent
