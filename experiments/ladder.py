@@ -65,7 +65,9 @@ default recipe with the velocity split along and across the local vessel axis
 recipe without the split, seeds 0 and 1 guarded; ``axis_signed`` / ``axis_signed_guards``
 the split with the wall noise and signed wall features of ``wallnoise_signed``;
 ``axis_committee`` / ``axis_committee_guards`` / ``axis_committee3_guards`` its seeds rolled
-out as a committee, the members' mean step fed back, alone and guarded; ``follow`` /
+out as a committee, the members' mean step fed back, alone and guarded; ``axis_swell`` /
+``axis_swell10`` (and ``*_guards``) the split with swell noise of 5 % and 10 %
+(``thrombojax.train.shape_noise``); ``follow`` /
 ``follow_alone`` the split with the vessel-following prior, guarded and alone;
 ``follow_nohist*`` the prior without the history frame, ``follow_histnoise*`` with history
 noise, ``follow_steady*`` without the history frame and trained only on the frames rollouts

@@ -12,7 +12,13 @@ import numpy as np
 from thrombojax import study
 from thrombojax.data.augment import subsample_indices
 from thrombojax.data.radius import vessel_radius
-from thrombojax.eval.drift import centroid_speed, direction_carry, history_gain, speed_carry
+from thrombojax.eval.drift import (
+    centroid_speed,
+    direction_carry,
+    history_gain,
+    speed_carry,
+    swell_carry,
+)
 from thrombojax.eval.metrics import (
     centroid_error,
     fit_vessel_wall,
@@ -111,6 +117,9 @@ def evaluate_runs(runs: list[pathlib.Path], data: str, guards: bool,
             extra["direction_carry"] = float(direction_carry(
                 step, trained.params, trained.stats, pos, nt, np.arange(skip, pos.shape[0] - 1),
                 angle=0.1).mean())
+            extra["swell_carry"] = float(swell_carry(
+                step, trained.params, trained.stats, pos, nt, np.arange(skip, pos.shape[0] - 1),
+                delta=0.02).mean())
         per_sim[name] = {
             "mse1_all": float(m1.mean()) / r**2, "mse1_all_cv": float(c1.mean()) / r**2,
             "mse1_phase": float(m1[phase].mean()) / r**2,

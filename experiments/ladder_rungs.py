@@ -9,7 +9,7 @@ import numpy as np
 
 __all__ = ["Rung", "RUNGS", "COMMON", "STUDY_SIZE", "SMALL_MGN", "SIGNED", "HISTNOISE",
            "WALK", "AXIS", "AXIS_SIGNED", "FOLLOW", "FOLLOW_NOHIST",
-           "FOLLOW_HISTNOISE", "FOLLOW_STEADY"]
+           "FOLLOW_HISTNOISE", "FOLLOW_STEADY", "AXIS_SWELL", "AXIS_SWELL10"]
 
 SMALL_MGN = {"hidden": 32, "processor_size": 5, "max_neighbors": 12}
 _SCHEDULE = {"max_rotation": 0.0, "warmup_epochs": 2.0}
@@ -52,6 +52,9 @@ AXIS_SIGNED = {**SIGNED, "axis_features": 2.0}
 # it with the vessel-following prior: the step moves the clot along the vessel at its speed
 # and the model learns the rest (rungs ``follow``, ``follow_alone``)
 FOLLOW = {**AXIS, "follow_axis": 2.0}
+# it with swell noise of 5 % and 10 % (the clot scaled about its centroid in the inputs, the
+# target taking half back): rolled out alone, the recipe's clot swells and leaves the vessel
+AXIS_SWELL, AXIS_SWELL10 = {**AXIS, "swell_noise": 0.05}, {**AXIS, "swell_noise": 0.1}
 # it without the history frame (the model cannot carry its last acceleration over: with the
 # history, ``history_gain`` 0.94-1.07 and the clot sped up along the vessel), and it with the
 # history kept but its clot-wide acceleration noised (history noise 0.02 r)
@@ -210,6 +213,11 @@ RUNGS: tuple[Rung, ...] = (
          committee=True),
     Rung("axis_committee3_guards", AXIS, guards=True, reuse="walk_axis", members=3,
          committee=True),
+    # the split with swell noise (5 %, 10 %), alone and guarded
+    Rung("axis_swell", AXIS_SWELL),
+    Rung("axis_swell_guards", AXIS_SWELL, guards=True, reuse="axis_swell"),
+    Rung("axis_swell10", AXIS_SWELL10),
+    Rung("axis_swell10_guards", AXIS_SWELL10, guards=True, reuse="axis_swell10"),
     # the split with the vessel-following prior, guarded and alone
     Rung("follow", FOLLOW, guards=True),
     Rung("follow_alone", FOLLOW, reuse="follow"),

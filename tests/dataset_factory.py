@@ -319,3 +319,28 @@ def ring_clot_window(speed: float = 0.05, accel: float = 0.0, shear: float = 0.0
     out[:, moving, 0] += (speed * t + 0.5 * accel * t**2)[:, None]
     out[:, moving, 1] += shear * t[:, None] * out[0, moving, 2][None]
     return jnp.asarray(out), jnp.asarray(nt), jnp.asarray(mask)
+
+
+def lattice_clot_window(speed: float = 0.05, *, spacing: float = 0.15, frames: int = 4,
+                        seed: int = 0):
+    """A clot that is a regular 4 x 4 x 3 lattice of nodes ``spacing`` apart (as a meshed
+    clot, every edge about as long as the next; turned by a random rotation of ``seed``),
+    moving along x at ``speed`` per frame beside the ring of 16 vessel nodes of
+    :func:`ring_clot_window`; 4 padded nodes last. Returns ``(frames [W, N, 3], node_type,
+    mask)`` jax arrays."""
+    from thrombojax.types import NodeType
+
+    rng = np.random.default_rng(seed)
+    axes = [np.arange(n) - (n - 1) / 2 for n in (4, 4, 3)]
+    grid = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, 3) * spacing
+    rot, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+    ang = np.linspace(0, 2 * np.pi, 16, endpoint=False)
+    vessel = np.array([[0.0, 1.2 * np.cos(a), 1.2 * np.sin(a)] for a in ang])
+    x = np.concatenate([vessel, grid @ rot.T, np.zeros((4, 3))]).astype(np.float32)
+    nt = np.array([NodeType.VESSEL] * 16 + [NodeType.CLOT] * len(grid) + [NodeType.VESSEL] * 4,
+                  np.int32)
+    mask = np.arange(len(x)) < 16 + len(grid)
+    out = np.repeat(x[None], frames, axis=0)
+    out[:, (nt == NodeType.CLOT) & mask, 0] += speed * np.arange(frames, dtype=np.float32)[:, None]
+    return jnp.asarray(out), jnp.asarray(nt), jnp.asarray(mask)
+

@@ -81,6 +81,11 @@ def _add_train(sub) -> None:
                    "clot's input motion turned by one random rotation per window (angle vector "
                    "N(0, this^2) per axis; s_t and the target unchanged): the model is shown a "
                    "clot coming in from off its path and the true next frame (default 0: off)")
+    p.add_argument("--swell-noise", type=NN_FLOAT, help="swell noise, a fraction: the clot of "
+                   "the input frames scaled about its centroid by 1 + N(0, this^2), one draw per "
+                   "window (with a random rate over the input frames), the target by half as "
+                   "much: the model learns to take back a swelling of the clot, which rollouts "
+                   "otherwise keep and grow (default 0: off)")
     p.add_argument("--time-scale", type=float, help="time-scaling augmentation, the largest "
                    "factor F >= 1: each window's clot motion played F^u times as fast, u ~ "
                    "U(-1, 1) (velocities k, accelerations k^2 times), so a dataset at another "
@@ -161,7 +166,8 @@ def _run_train(args) -> int:
              "n_test", "tiny", "rollout_steps", "noise_gamma", "pushforward_steps",
              "curriculum_epochs", "frame", "wall_features", "history", "noise_walk",
              "stop_history_gradient", "noise_shared", "wall_noise", "wall_signed",
-             "history_noise", "speed_noise", "direction_noise", "time_scale", "select_by",
+             "history_noise", "speed_noise", "direction_noise", "swell_noise", "time_scale",
+             "select_by",
              "axis_features", "follow_axis")
     overrides = {k: getattr(args, k) for k in names if getattr(args, k) is not None}
     from thrombojax.train.recipes import DEFAULT_RECIPE, recipe

@@ -26,8 +26,14 @@ leaves the vessel, while the rollout speeds up a little every step. Two measures
   keeps. Constant velocity keeps all of it (1); a rollout's clot that drifts off the true track
   keeps drifting with a step near 1 (:func:`thrombojax.train.noise.add_direction_noise` trains
   the pull-back).
+- :func:`swell_carry`: of a swelling of the clot in the inputs (the clot of s_t and of every
+  frame before it scaled about its centroid by ``1 + delta``), the share the predicted next
+  clot keeps (its least-squares scale about its centroid against the prediction from the true
+  inputs). Constant velocity keeps all of it (1); a rollout whose clot swells a little in one
+  step keeps swelling with a step near 1 and leaves the vessel
+  (:func:`thrombojax.train.shape_noise.add_swell_noise` trains the pull-back).
 
-Both are teacher-forced or post-hoc measures on host arrays; nothing here is compiled for a
+All are teacher-forced or post-hoc measures on host arrays; nothing here is compiled for a
 rollout.
 """
 
@@ -42,7 +48,8 @@ from thrombojax.simulator.step import LearnedStep
 from thrombojax.train.noise import rotation_matrix
 from thrombojax.types import TargetStats, clot_mask
 
-__all__ = ["centroid_speed", "history_gain", "speed_carry", "direction_carry"]
+__all__ = ["centroid_speed", "history_gain", "speed_carry", "direction_carry",
+           "swell_carry"]
 
 
 def centroid_speed(trajectory: np.ndarray, clot_mask: np.ndarray) -> np.ndarray:
@@ -204,6 +211,62 @@ def direction_carry(
                           "direction carry", move, share)
 
     return 0.5 * (turned(0) + turned(1))
+
+
+def swell_carry(
+    step: LearnedStep,
+    params: dict,
+    stats: TargetStats,
+    positions: np.ndarray,
+    node_type: np.ndarray,
+    frames: np.ndarray,
+    *,
+    delta: float,
+    mask: np.ndarray | None = None,
+) -> np.ndarray:
+    """Share of a swelling of the clot in the inputs that a step keeps, per frame.
+
+    At each frame ``t``: the clot of s_t and of every frame before it is scaled about its own
+    centroid by ``1 + delta`` (a swollen clot moving as the true one); the share is the
+    least-squares scale of the predicted next clot about its centroid against the next clot
+    predicted from the true inputs, less 1, over ``delta``. 1: the swelling is kept (constant
+    velocity); 0: the step predicts the clot's true shape again in one step.
+
+    Args:
+        step: a learned step. params, stats: its variables and statistics.
+        positions: ``[T, n_nodes, 3]`` a trajectory (scaled coordinates). node_type: ``[n_nodes]``.
+        frames: the frames ``t`` (each ``>= 1`` and ``< T``) to measure at.
+        delta: the relative swelling (> 0; small, e.g. 0.02).
+        mask: ``[n_nodes]`` real nodes (default: all).
+    Returns:
+        ``[len(frames)]`` shares.
+    Raises:
+        ConfigError: a step with a cell grid or a bad ``delta``.
+    """
+    step.require_dense("swell carry")
+    if not delta > 0:
+        raise ConfigError(f"swell carry: delta must be > 0, got {delta!r}")
+    positions = np.asarray(positions, np.float32)
+    node_type = np.asarray(node_type)
+    mask = np.ones(len(node_type), bool) if mask is None else np.asarray(mask, bool)
+    clot = np.asarray(clot_mask(node_type, mask), bool)
+
+    def swell(x):
+        centre = x[..., clot, :].mean(axis=-2, keepdims=True)
+        out = x.copy()
+        out[..., clot, :] = centre + (1.0 + delta) * (x[..., clot, :] - centre)
+        return out
+
+    out = []
+    for t in np.asarray(frames, int):
+        cur, given = positions[t], np.asarray(step.previous(positions, t), np.float32)
+        nxt = np.asarray(batched_next(
+            step, params, stats, jnp.asarray(np.stack([given, swell(given)])),
+            jnp.asarray(np.stack([cur, swell(cur)])), jnp.asarray(node_type), jnp.asarray(mask)),
+            np.float64)[:, clot]
+        base, pert = nxt - nxt.mean(axis=1, keepdims=True)
+        out.append((float(np.sum(pert * base) / np.sum(base * base)) - 1.0) / delta)
+    return np.asarray(out)
 
 
 def _per_frame(step, params, stats, positions, node_type, mask, frames, what, move, share):

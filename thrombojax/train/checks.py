@@ -40,6 +40,7 @@ _RULES: dict[str, tuple[str, float, bool, bool]] = {
     "history_noise": ("float", 0.0, True, False),
     "speed_noise": ("float", 0.0, True, False),
     "direction_noise": ("float", 0.0, True, False),
+    "swell_noise": ("float", 0.0, True, False),
     "time_scale": ("float", 1.0, True, False),
     "seed": ("int", 0, True, False),
     "split_seed": ("int", 0, True, False),

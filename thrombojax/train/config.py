@@ -76,6 +76,11 @@ class TrainConfig:
             rotation per window, angle vector ``N(0, direction_noise^2 I)``, s_t and the target
             unchanged, so the model is shown a clot coming in from off its path and the true
             next frame (0: off; :func:`thrombojax.train.noise.add_direction_noise`).
+        swell_noise: swell noise, a fraction (dimensionless): the clot of the input frames
+            scaled about its centroid by ``1 + e``, ``e ~ N(0, swell_noise^2)`` per window
+            (with a random rate over the input frames), the targets by ``1 + e / 2``, so the
+            model learns to take back a swelling of the clot, which a rollout's clot otherwise
+            keeps and grows (0: off; :func:`thrombojax.train.shape_noise.add_swell_noise`).
         time_scale: time-scaling augmentation, the largest factor ``F`` (>= 1): each
             window's clot motion played ``k = F^u`` times as fast, ``u ~ U(-1, 1)`` (velocities
             ``k``, accelerations ``k^2`` times), so a dataset at another frame rate or a clot
@@ -145,6 +150,7 @@ class TrainConfig:
     history_noise: float = 0.0
     speed_noise: float = 0.0
     direction_noise: float = 0.0
+    swell_noise: float = 0.0
     time_scale: float = 1.0
     seed: int = 0
     split_seed: int = 0

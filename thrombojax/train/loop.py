@@ -274,6 +274,7 @@ def train(
                                              history_noise=cfg.history_noise * radius,
                                              speed_noise=cfg.speed_noise,
                                              direction_noise=cfg.direction_noise,
+                                             swell_noise=cfg.swell_noise,
                                              time_scale=cfg.time_scale, k=k,
                                              pushforward=cfg.pushforward_steps)
         return train_steps[k]

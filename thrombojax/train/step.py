@@ -54,6 +54,7 @@ from thrombojax.train.noise import (
     add_wall_noise,
     time_scale_window,
 )
+from thrombojax.train.shape_noise import add_swell_noise
 from thrombojax.train.state import TrainState
 from thrombojax.types import TargetStats
 
@@ -114,6 +115,7 @@ def batch_loss(
     history_noise: float = 0.0,
     speed_noise: float = 0.0,
     direction_noise: float = 0.0,
+    swell_noise: float = 0.0,
     time_scale: float = 1.0,
     k: int = 1,
     pushforward: int = 0,
@@ -140,6 +142,9 @@ def batch_loss(
         direction_noise: standard deviation per axis (radians) of the rotation the clot's
             input motion is turned by (:func:`thrombojax.train.noise.add_direction_noise`;
             0: off).
+        swell_noise: standard deviation of the factor the clot's shape is scaled by about its
+            centroid in the inputs, the targets taking half of it back
+            (:func:`thrombojax.train.shape_noise.add_swell_noise`; 0: off).
         time_scale: largest factor the window's clot motion is played faster or slower by
             (:func:`thrombojax.train.noise.time_scale_window`; 1: off).
         k: steps of the unrolled loss (1: the single-step loss).
@@ -160,7 +165,8 @@ def batch_loss(
                                 noise_gamma=noise_gamma, noise_walk=noise_walk,
                                 noise_shared=noise_shared, wall_noise=wall_noise,
                                 history_noise=history_noise, speed_noise=speed_noise,
-                                direction_noise=direction_noise, time_scale=time_scale)
+                                direction_noise=direction_noise, swell_noise=swell_noise,
+                                time_scale=time_scale)
 
     def one(frames, node_type, mask, key):
         model_key = None
@@ -191,10 +197,11 @@ def batch_loss(
 
 def _corrupt(key, frames, node_type, mask, *, current, noise_std, noise_gamma, noise_walk,
              noise_shared, wall_noise, history_noise, speed_noise, direction_noise,
-             time_scale):
+             swell_noise, time_scale):
     """One training window with its input noise (:mod:`thrombojax.train.noise`): the time
     scaling first from ``fold_in(key, 4)``, the speed and direction noise (on the clean motion)
-    from ``fold_in(key, 3)`` and ``fold_in(key, 5)``, then the Gaussian or random-walk
+    from ``fold_in(key, 3)`` and ``fold_in(key, 5)``, the swell noise from ``fold_in(key, 6)``,
+    then the Gaussian or random-walk
     noise from ``key``, the wall noise from ``fold_in(key, 1)`` and the history noise from
     ``fold_in(key, 2)`` (so turning any on leaves the other draws of a seed unchanged)."""
     if time_scale != 1.0:
@@ -206,6 +213,9 @@ def _corrupt(key, frames, node_type, mask, *, current, noise_std, noise_gamma, n
     if direction_noise > 0:
         frames = add_direction_noise(jax.random.fold_in(key, 5), frames, node_type, mask,
                                      std=direction_noise, current=current)
+    if swell_noise > 0:
+        frames = add_swell_noise(jax.random.fold_in(key, 6), frames, node_type, mask,
+                                 std=swell_noise, current=current)
     if noise_std > 0:
         frames = add_training_noise(key, frames, node_type, mask, std=noise_std,
                                     gamma=noise_gamma, current=current, walk=noise_walk,
@@ -250,6 +260,7 @@ def make_train_step(
     history_noise: float = 0.0,
     speed_noise: float = 0.0,
     direction_noise: float = 0.0,
+    swell_noise: float = 0.0,
     time_scale: float = 1.0,
     k: int = 1,
     pushforward: int = 0,
@@ -263,7 +274,8 @@ def make_train_step(
         tx: the optimiser.
         stats: target statistics (closed over, constants of the compiled step).
         noise_std, noise_gamma, noise_walk, noise_shared, wall_noise, history_noise,
-            speed_noise, direction_noise, time_scale: training noise and time scaling
+            speed_noise, direction_noise, swell_noise, time_scale: training noise and time
+            scaling
             (:func:`batch_loss`).
         k: steps of the unrolled loss (1: single step).
         pushforward: steps applied first without gradients (push-forward training).
@@ -282,7 +294,8 @@ def make_train_step(
                 noise_std=noise_std, noise_gamma=noise_gamma, noise_walk=noise_walk,
                 noise_shared=noise_shared, wall_noise=wall_noise,
                 history_noise=history_noise, speed_noise=speed_noise,
-                direction_noise=direction_noise, time_scale=time_scale, k=k,
+                direction_noise=direction_noise, swell_noise=swell_noise,
+                time_scale=time_scale, k=k,
                 pushforward=pushforward,
                 flat_batch=flat_batch,
             )
