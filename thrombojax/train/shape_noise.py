@@ -33,6 +33,7 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
+from thrombojax.train.noise import _off
 from thrombojax.types import clot_mask
 
 __all__ = ["add_swell_noise", "scale_about_centroid"]
@@ -74,10 +75,8 @@ def add_swell_noise(
     Raises:
         ValueError: a negative ``std``, ``gamma`` outside ``[0, 1]`` or ``current < 1``.
     """
-    if std == 0.0:
+    if _off(std, "swell noise"):
         return frames
-    if not std > 0.0:
-        raise ValueError(f"swell noise std must be >= 0, got {std!r}")
     if not 0.0 <= gamma <= 1.0:
         raise ValueError(f"swell noise gamma must be in [0, 1], got {gamma!r}")
     if current < 1:
