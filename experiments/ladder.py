@@ -69,9 +69,9 @@ out as a committee, the members' mean step fed back, alone and guarded; ``axis_s
 ``axis_swell10`` (and ``*_guards``) the split with swell noise of 5 % and 10 %
 (``thrombojax.train.shape_noise``), ``axis_swell_last*`` / ``axis_swell10_last*`` their last
 checkpoints (``*_seeds`` / ``*_ens_guards`` seeds 0-1, ``*_seeds3`` / ``*_ens3_guards`` seeds
-0-2), ``axis_signed_swell10*`` it with the wall noise and signed wall features;
-``follow`` /
-``follow_alone`` the split with the vessel-following prior, guarded and alone;
+0-2), ``axis_signed_swell10*`` it with the wall noise and signed wall features
+(``*_last*`` its last checkpoint); ``follow`` / ``follow_alone`` the split with the
+vessel-following prior, guarded and alone;
 ``follow_nohist*`` the prior without the history frame, ``follow_histnoise*`` with history
 noise, ``follow_steady*`` without the history frame and trained only on the frames rollouts
 run on, from the dataset's ``skip_frames``).

@@ -244,6 +244,12 @@ RUNGS: tuple[Rung, ...] = (
     Rung("axis_signed_swell10", AXIS_SIGNED_SWELL10),
     Rung("axis_signed_swell10_guards", AXIS_SIGNED_SWELL10, guards=True,
          reuse="axis_signed_swell10"),
+    # its last checkpoint, alone and guarded (on ClotEntry the swell noise's best one-step
+    # checkpoint was epoch 1 of 4 and rolled out far worse than the last)
+    Rung("axis_signed_swell10_last", AXIS_SIGNED_SWELL10, reuse="axis_signed_swell10",
+         checkpoint="last"),
+    Rung("axis_signed_swell10_last_guards", AXIS_SIGNED_SWELL10, guards=True,
+         reuse="axis_signed_swell10", checkpoint="last"),
     # the split with the vessel-following prior, guarded and alone
     Rung("follow", FOLLOW, guards=True),
     Rung("follow_alone", FOLLOW, reuse="follow"),
