@@ -246,10 +246,7 @@ def swell_carry(
     step.require_dense("swell carry")
     if not delta > 0:
         raise ConfigError(f"swell carry: delta must be > 0, got {delta!r}")
-    positions = np.asarray(positions, np.float32)
-    node_type = np.asarray(node_type)
-    mask = np.ones(len(node_type), bool) if mask is None else np.asarray(mask, bool)
-    clot = np.asarray(clot_mask(node_type, mask), bool)
+    positions, node_type, mask, clot = _arrays(positions, node_type, mask)
 
     def swell(x):
         centre = x[..., clot, :].mean(axis=-2, keepdims=True)
@@ -273,10 +270,7 @@ def _per_frame(step, params, stats, positions, node_type, mask, frames, what, mo
     """For each frame: the step's next centroid from the true inputs and from the inputs
     ``move(prev, cur, clot, along, speed)`` makes (one call of the compiled step for both), and
     ``share(shift of the centroid, along, speed)``."""
-    positions = np.asarray(positions, np.float32)
-    node_type = np.asarray(node_type)
-    mask = np.ones(len(node_type), bool) if mask is None else np.asarray(mask, bool)
-    clot = np.asarray(clot_mask(node_type, mask), bool)
+    positions, node_type, mask, clot = _arrays(positions, node_type, mask)
     out = []
     for t in np.asarray(frames, int):
         cur, given = positions[t], np.asarray(step.previous(positions, t), np.float32)
@@ -294,3 +288,12 @@ def _per_frame(step, params, stats, positions, node_type, mask, frames, what, mo
         base, pert = nxt[:, clot].mean(axis=1)
         out.append(share(pert - base, along, speed))
     return np.asarray(out)
+
+
+def _arrays(positions, node_type, mask):
+    """The trajectory as float32, the node types, the real-node mask (default: all) and the
+    clot mask, as numpy arrays."""
+    node_type = np.asarray(node_type)
+    mask = np.ones(len(node_type), bool) if mask is None else np.asarray(mask, bool)
+    return (np.asarray(positions, np.float32), node_type, mask,
+            np.asarray(clot_mask(node_type, mask), bool))
