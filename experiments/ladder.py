@@ -67,7 +67,8 @@ the split with the wall noise and signed wall features of ``wallnoise_signed``;
 ``axis_committee`` / ``axis_committee_guards`` / ``axis_committee3_guards`` its seeds rolled
 out as a committee, the members' mean step fed back, alone and guarded; ``axis_swell`` /
 ``axis_swell10`` (and ``*_guards``) the split with swell noise of 5 % and 10 %
-(``thrombojax.train.shape_noise``), ``axis_swell_last*`` / ``axis_swell10_last*`` their last
+(``thrombojax.train.shape_noise``), ``axis_swell03_last*`` it with 3 % (the last checkpoint,
+alone and guarded), ``axis_swell_last*`` / ``axis_swell10_last*`` their last
 checkpoints (``*_seeds`` / ``*_ens_guards`` seeds 0-1, ``*_seeds3`` / ``*_ens3_guards`` seeds
 0-2), ``axis_signed_swell10*`` it with the wall noise and signed wall features
 (``*_last*`` its last checkpoint); ``follow`` / ``follow_alone`` the split with the
