@@ -255,6 +255,8 @@ def main(argv: list[str] | None = None) -> int:
                        seconds=time.perf_counter() - t)
             print(f"  {rung.name}: MSE@full / CV = "
                   f"{res['mean']['mse_full'] / res['mean']['mse_full_cv']:.2f}", flush=True)
+            # kept before the members are scored one by one, which a later run resumes
+            atomic_write_text(done, json.dumps(res, indent=1))
         if rung.members > 1 and not rung.committee and "members_alone" not in res:
             runs = _member_runs(rung, out, args.dataset, split, args.nodes, common)
             res["members_alone"] = members_alone(runs, args.dataset, rung.guards, args.nodes,
