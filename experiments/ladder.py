@@ -261,10 +261,7 @@ def main(argv: list[str] | None = None) -> int:
             runs = _member_runs(rung, out, args.dataset, split, args.nodes, common)
             res["members_alone"] = members_alone(runs, args.dataset, rung.guards, args.nodes,
                                                  rung.checkpoint)
-        elif done.is_file():
-            results[rung.name] = res
-            continue
-        atomic_write_text(done, json.dumps(res, indent=1))
+            atomic_write_text(done, json.dumps(res, indent=1))
         results[rung.name] = res
     table = write_reports(out, results, title=args.title, test_sims=split["test_sims"],
                           nodes=args.nodes)

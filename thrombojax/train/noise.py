@@ -87,7 +87,7 @@ from thrombojax.graph.wall_nodes import local_wall_plane
 from thrombojax.types import clot_mask
 
 __all__ = ["add_training_noise", "add_wall_noise", "add_history_noise", "add_speed_noise",
-           "add_direction_noise", "rotation_matrix", "time_scale_window"]
+           "add_direction_noise", "noise_off", "rotation_matrix", "time_scale_window"]
 
 
 def add_training_noise(
@@ -182,7 +182,7 @@ def add_wall_noise(
         ``[W, n_nodes, 3]``: the input frames ``0 .. current`` moved alike, the later frames by
         ``(1 - gamma)`` of the move.
     """
-    if _off(std, "wall noise"):
+    if noise_off(std, "wall noise"):
         return frames
     if not 0.0 <= gamma <= 1.0:
         raise ValueError(f"wall noise gamma must be in [0, 1], got {gamma!r}")
@@ -196,7 +196,7 @@ def add_wall_noise(
     return frames.at[:current + 1].add(move).at[current + 1:].add((1.0 - gamma) * move)
 
 
-def _off(std: float, what: str) -> bool:
+def noise_off(std: float, what: str) -> bool:
     """True for ``std == 0`` (the noise is off); a negative ``std`` raises ValueError naming it."""
     if std == 0.0:
         return True
@@ -233,7 +233,7 @@ def add_history_noise(
         ``[W, n_nodes, 3]``: the clot nodes of frames ``0 .. current - 2`` moved by one common
         ``N(0, std^2 I)`` vector; every other frame and node as given.
     """
-    if _off(std, "history noise"):
+    if noise_off(std, "history noise"):
         return frames
     if current < 2:
         raise ValueError(f"history noise needs a history of at least 2 frames (the step's "
@@ -265,7 +265,7 @@ def add_speed_noise(
         ``[W, n_nodes, 3]``: the clot nodes of frames ``0 .. current - 1`` at
         ``s_t - (1 + e) (s_t - s_k)``; s_t, the later frames and every other node as given.
     """
-    if _off(std, "speed noise"):
+    if noise_off(std, "speed noise"):
         return frames
     e = std * jax.random.normal(key, (), frames.dtype)
     return _remap_motion(frames, node_type, mask, current, "speed noise",
@@ -319,7 +319,7 @@ def add_direction_noise(
         ``s_t - R (s_t - s_k)``, ``R`` the rotation by ``w ~ N(0, std^2 I)``; s_t, the later
         frames and every other node as given.
     """
-    if _off(std, "direction noise"):
+    if noise_off(std, "direction noise"):
         return frames
     rot = rotation_matrix(std * jax.random.normal(key, (3,), frames.dtype))
     return _remap_motion(frames, node_type, mask, current, "direction noise",

@@ -33,7 +33,7 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
-from thrombojax.train.noise import _off
+from thrombojax.train.noise import noise_off
 from thrombojax.types import clot_mask
 
 __all__ = ["add_swell_noise", "scale_about_centroid"]
@@ -75,7 +75,7 @@ def add_swell_noise(
     Raises:
         ValueError: a negative ``std``, ``gamma`` outside ``[0, 1]`` or ``current < 1``.
     """
-    if _off(std, "swell noise"):
+    if noise_off(std, "swell noise"):
         return frames
     if not 0.0 <= gamma <= 1.0:
         raise ValueError(f"swell noise gamma must be in [0, 1], got {gamma!r}")
