@@ -9,6 +9,14 @@ centroid), true / predicted, in milli vessel radii per frame squared. A rollout 
 up from true-input predictions near the truth's zero is driven by the states it reaches, not
 by the one step (``experiments/results/ladder_budget/bendvessel_histnoise/README.md``).
 
+``--nodes N`` evaluates on the ladder's fixed subset of ``N`` nodes (``subsample_indices`` with
+seed 0, as ``experiments/ladder_eval.py``: ClotEntry's 2,048), which models with vessel-axis or
+wall features need on a full-resolution dataset; ``--which last`` loads the last checkpoint.
+``--blocks B`` also prints, per block of ``B`` frames from the dataset's ``skip_frames``, the
+mean true and predicted acceleration and their correlation over the frames: a step whose
+clot-mean acceleration is biased in one direction moves its rollout's clot off the true one
+by the integral of that bias.
+
 With ``--on-rollout`` the run is also rolled out (guards off) from the dataset's
 ``skip_frames``, and per rollout frame printed are: how far the rollout's clot centroid is
 ahead of the true one along the motion and off it sideways (radii), its speed and the truth's
@@ -26,6 +34,7 @@ import sys
 
 import numpy as np
 
+from thrombojax.data.augment import subsample_indices
 from thrombojax.data.radius import vessel_radius
 from thrombojax.eval.single_step import batched_next, scaled_simulation
 from thrombojax.io.hdf5 import open_dataset
@@ -35,13 +44,24 @@ from thrombojax.train.state import TrainedModel, load_trained
 from thrombojax.types import clot_mask
 
 
-def accelerations(trained: TrainedModel, dataset, name: str) -> list[tuple[int, float, float]]:
+def _simulation(trained: TrainedModel, dataset, name: str, nodes: int | None):
+    """Scaled positions and node types of ``name``, on the ladder's subset of ``nodes``."""
+    pos, nt = scaled_simulation(dataset, name, trained.scaling)
+    if nodes:
+        idx = subsample_indices(0, nt, nodes)
+        pos, nt = pos[:, idx], nt[idx]
+    return pos, nt
+
+
+def accelerations(trained: TrainedModel, dataset, name: str,
+                  nodes: int | None = None) -> list[tuple[int, float, float]]:
     """``(t, true, predicted)`` centroid accelerations along the motion, milli-radii / frame^2,
-    of simulation ``name`` of an open dataset (each frame one call of the compiled step)."""
+    of simulation ``name`` of an open dataset (each frame one call of the compiled step), on
+    all nodes or the ladder's subset of ``nodes``."""
     r = vessel_radius(dataset) / float(trained.scaling.scale)
     step = trained.step
     step.require_dense("teacher-forced accelerations")
-    pos, nt = scaled_simulation(dataset, name, trained.scaling)
+    pos, nt = _simulation(trained, dataset, name, nodes)
     clot, mask = clot_mask(nt), np.ones(len(nt), bool)
     c = pos[:, clot].mean(axis=1)
     rows = []
@@ -63,28 +83,57 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--sims", required=True, help="simulations (comma-separated)")
     parser.add_argument("--on-rollout", action="store_true",
                         help="also the step's acceleration on its own rollout's states")
+    parser.add_argument("--nodes", type=int, default=None,
+                        help="the ladder's fixed subset of this many nodes (default: all)")
+    parser.add_argument("--which", choices=("best", "last"), default="best",
+                        help="checkpoint to load (default best)")
+    parser.add_argument("--blocks", type=int, default=0,
+                        help="also a summary per block of this many frames (default 0: none)")
     args = parser.parse_args(argv)
-    trained, dataset = load_trained(args.run), open_dataset(args.dataset)
+    trained = load_trained(args.run, which=args.which)
+    dataset = open_dataset(args.dataset)
     for name in args.sims.split(","):
-        rows = accelerations(trained, dataset, name)
+        rows = accelerations(trained, dataset, name, args.nodes)
         print(f"{name} (t: true / predicted, milli-r per frame^2)")
         print(" ".join(f"{t}:{a:+.0f}/{p:+.0f}" for t, a, p in rows))
+        if args.blocks:
+            print(block_summary(rows, skip_frames(dataset), args.blocks))
         if args.on_rollout:
             print(f"{name} on its rollout: t | ahead, sideways (r) | speed rollout / true "
                   "(r/frame) | acceleration from the rollout / the true clot on its track / "
                   "the true clot at its place / the true frames (milli-r/frame^2)")
-            for t, *vals in on_rollout(trained, dataset, name):
+            for t, *vals in on_rollout(trained, dataset, name, args.nodes):
                 print(f"{t:3d} | {vals[0]:+.2f} {vals[1]:.2f} | {vals[2]:.3f} / {vals[3]:.3f} | "
                       + " / ".join(f"{v:+.1f}" for v in vals[4:]))
     return 0
 
 
-def on_rollout(trained: TrainedModel, dataset, name: str) -> list[tuple]:
+def block_summary(rows: list[tuple[int, float, float]], start: int, size: int) -> str:
+    """Per block of ``size`` frames from ``start``: mean true and predicted acceleration
+    (milli-r / frame^2) and their correlation; the last line over all frames from ``start``."""
+    a = np.array(rows, float).reshape(-1, 3)
+    a = a[a[:, 0] >= start]
+    if not len(a):
+        return f"  no frames from {start}"
+    lines = []
+    edges = list(range(start, int(a[-1, 0]) + 1, size))
+    for lo in edges + [None]:
+        sel = a if lo is None else a[(a[:, 0] >= lo) & (a[:, 0] < lo + size)]
+        corr = np.corrcoef(sel[:, 1], sel[:, 2])[0, 1] if len(sel) > 2 else float("nan")
+        what = f"frames {start}-{int(a[-1, 0])}" if lo is None else \
+            f"frames {lo}-{min(lo + size, int(a[-1, 0]) + 1) - 1}"
+        lines.append(f"  {what}: true {sel[:, 1].mean():+.2f}, predicted {sel[:, 2].mean():+.2f}"
+                     f" milli-r/frame^2 (correlation {corr:+.2f})")
+    return "\n".join(lines)
+
+
+def on_rollout(trained: TrainedModel, dataset, name: str,
+               nodes: int | None = None) -> list[tuple]:
     """Per rollout frame ``(t, ahead, sideways, speed, true speed, a_rollout, a_track, a_place,
     a_true)`` (module docstring; radii, radii per frame, milli-radii per frame squared)."""
     r = vessel_radius(dataset) / float(trained.scaling.scale)
     step = trained.step
-    pos, nt = scaled_simulation(dataset, name, trained.scaling)
+    pos, nt = _simulation(trained, dataset, name, nodes)
     clot, mask = clot_mask(nt), np.ones(len(nt), bool)
     skip = max(skip_frames(dataset), step.history)
     pred, _ = rollout_with_corrections(step, trained.params, trained.stats,

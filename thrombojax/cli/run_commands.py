@@ -91,6 +91,11 @@ def _add_train(sub) -> None:
                    "U(-1, 1) (velocities k, accelerations k^2 times), so a dataset at another "
                    "frame rate, or a clot driven faster, is within the training speeds "
                    "(default 1: off)")
+    p.add_argument("--clot-mean-weight", type=NN_FLOAT, help="extra weight of the clot-wide "
+                   "error in the loss: the squared error of the clot's mean (normalised) "
+                   "acceleration counted this many times more, so the model is fitted first "
+                   "where a rollout's end position comes from, the motion of the clot as a "
+                   "whole (default 0: off, the plain per-node MSE)")
     p.add_argument("--seed", type=NN_INT, help="seed of initialisation, data order, augmentations")
     p.add_argument("--skip-frames", type=NN_INT, help="first frames never used as frame t of a "
                    "window (default 0: every window)")
@@ -167,7 +172,7 @@ def _run_train(args) -> int:
              "curriculum_epochs", "frame", "wall_features", "history", "noise_walk",
              "stop_history_gradient", "noise_shared", "wall_noise", "wall_signed",
              "history_noise", "speed_noise", "direction_noise", "swell_noise", "time_scale",
-             "select_by",
+             "clot_mean_weight", "select_by",
              "axis_features", "follow_axis")
     overrides = {k: getattr(args, k) for k in names if getattr(args, k) is not None}
     from thrombojax.train.recipes import DEFAULT_RECIPE, recipe

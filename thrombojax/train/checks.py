@@ -42,6 +42,7 @@ _RULES: dict[str, tuple[str, float, bool, bool]] = {
     "direction_noise": ("float", 0.0, True, False),
     "swell_noise": ("float", 0.0, True, False),
     "time_scale": ("float", 1.0, True, False),
+    "clot_mean_weight": ("float", 0.0, True, False),
     "seed": ("int", 0, True, False),
     "split_seed": ("int", 0, True, False),
     "n_val": ("int", 0, True, False),

@@ -86,6 +86,12 @@ class TrainConfig:
             ``k``, accelerations ``k^2`` times), so a dataset at another frame rate or a clot
             driven faster is not outside the training speeds (1: off;
             :func:`thrombojax.train.noise.time_scale_window`).
+        clot_mean_weight: extra weight (>= 0) of the clot-wide error in the training loss:
+            the squared error of the clot's mean normalised acceleration is added this many
+            times more (:mod:`thrombojax.train.loss`). A rollout integrates a clot-wide error
+            step after step, so this is the part of the one step a rollout's end position
+            depends on; ``train_loss`` includes the weighted term, validation's ``val_loss``
+            stays the plain per-node MSE (0: off).
         seed: initialisation, data order, augmentations.
         split_seed: which simulations are validation / test.
         n_val, n_test: simulations held out for validation / test.
@@ -152,6 +158,7 @@ class TrainConfig:
     direction_noise: float = 0.0
     swell_noise: float = 0.0
     time_scale: float = 1.0
+    clot_mean_weight: float = 0.0
     seed: int = 0
     split_seed: int = 0
     n_val: int = 2

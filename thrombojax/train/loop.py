@@ -276,7 +276,8 @@ def train(
                                              direction_noise=cfg.direction_noise,
                                              swell_noise=cfg.swell_noise,
                                              time_scale=cfg.time_scale, k=k,
-                                             pushforward=cfg.pushforward_steps)
+                                             pushforward=cfg.pushforward_steps,
+                                             clot_mean_weight=cfg.clot_mean_weight)
         return train_steps[k]
 
     eval_step = make_eval_step(step_fn, stats, k=cfg.rollout_steps)

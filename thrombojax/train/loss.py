@@ -29,6 +29,13 @@ once on the batch's flat graph (:mod:`thrombojax.simulator.flat`).
 
 Sums and counts are returned (not means) so a batch, possibly split over devices, pools all its
 clot nodes: ``sum(sq) / sum(count)``.
+
+``clot_mean_sum`` is the clot-wide part of the loss's error: the squared error of the clot's
+*mean* normalised acceleration (averaged over the steps and x, y, z), times the window's clot
+node count so it pools the same way. It is part of ``loss_sum`` already (the mean error is one
+component of every node's error); :func:`thrombojax.train.step.batch_loss` can weight it again
+(``clot_mean_weight``): a rollout integrates a clot-wide error step after step, while the
+guards and the clot's own coherence take out much of an error that differs from node to node.
 """
 
 from __future__ import annotations
@@ -72,8 +79,9 @@ def window_loss_terms(
         pushforward: steps applied first without gradients (static, >= 0).
         train: model in training mode (dropout); rng: its PRNG key.
     Returns:
-        ``{"loss_sum", "mse_sum", "count"}``: squared errors summed over clot nodes and averaged
-        over steps and x, y, z; the number of clot nodes.
+        ``{"loss_sum", "mse_sum", "clot_mean_sum", "count"}``: squared errors summed over clot
+        nodes and averaged over steps and x, y, z; the clot-wide part (module docstring); the
+        number of clot nodes.
     """
     frames, positions, outputs = _predict(step, params, stats, frames, node_type, mask, k=k,
                                           pushforward=pushforward, train=train, rng=rng)
@@ -154,10 +162,14 @@ def _terms(step, stats, frames, node_type, mask, positions, outputs):
     target = step.normalized_target(  # the model learns what the step's prior leaves
         stats, target_acceleration(last, cur, truth) - prior, frames[h], node_type, mask)
     clot = clot_mask(node_type, mask)[None, :, None]
-    loss_sq = jnp.where(clot, (outputs - target) ** 2, 0.0).mean(axis=(0, 2))
+    err = jnp.where(clot, outputs - target, 0.0)
+    loss_sq = (err ** 2).mean(axis=(0, 2))
     mse_sq = jnp.where(clot, (positions - truth) ** 2, 0.0).mean(axis=(0, 2))
+    count = clot[0, :, 0].sum().astype(jnp.float32)
+    mean_err = err.sum(axis=1) / jnp.maximum(count, 1.0)  # [k, 3]: the clot-wide error
     return {
         "loss_sum": loss_sq.sum(),
         "mse_sum": mse_sq.sum(),
-        "count": clot[0, :, 0].sum().astype(jnp.float32),
+        "clot_mean_sum": count * (mean_err ** 2).mean(),
+        "count": count,
     }

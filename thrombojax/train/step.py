@@ -120,6 +120,7 @@ def batch_loss(
     k: int = 1,
     pushforward: int = 0,
     flat_batch: bool = False,
+    clot_mean_weight: float = 0.0,
 ) -> tuple[jax.Array, dict[str, jax.Array]]:
     """Loss of a batch pooled over its clot nodes, and metrics.
 
@@ -153,9 +154,13 @@ def batch_loss(
             (:mod:`thrombojax.simulator.flat`) where the model allows it
             (:func:`~thrombojax.simulator.flat.flat_batch_ok`); else, and by default,
             ``jax.vmap`` over the samples. Same loss and gradients (``tests/test_flat_batch.py``).
+        clot_mean_weight: extra weight ``w`` of the clot-wide error: the loss adds ``w`` times
+            the squared error of the clot's mean normalised acceleration
+            (:mod:`thrombojax.train.loss`; 0: off, the plain per-node MSE).
     Returns:
-        ``(loss, metrics)``: ``loss`` is the normalised-acceleration MSE; ``metrics`` holds
-        ``loss``, ``mse`` (the study's metric, scaled coordinates) and ``nodes``.
+        ``(loss, metrics)``: ``loss`` is the normalised-acceleration MSE (plus the weighted
+        clot-wide term); ``metrics`` holds ``loss``, ``mse`` (the study's metric, scaled
+        coordinates) and ``nodes``.
     """
     step = _as_step(model)
     size = batch.mask.shape[0]
@@ -191,6 +196,8 @@ def batch_loss(
     count = terms["count"].sum()
     denom = jnp.maximum(count, 1.0)
     loss = terms["loss_sum"].sum() / denom
+    if clot_mean_weight:
+        loss = loss + clot_mean_weight * terms["clot_mean_sum"].sum() / denom
     metrics = {"loss": loss, "mse": terms["mse_sum"].sum() / denom, "nodes": count}
     return loss, metrics
 
@@ -266,6 +273,7 @@ def make_train_step(
     pushforward: int = 0,
     donate: bool = True,
     flat_batch: bool = False,
+    clot_mean_weight: float = 0.0,
 ) -> Callable[[TrainState, Any, jax.Array], tuple[TrainState, dict]]:
     """Build the jitted ``train_step(state, batch, rng) -> (state, metrics)``.
 
@@ -281,6 +289,7 @@ def make_train_step(
         pushforward: steps applied first without gradients (push-forward training).
         donate: donate the old state's buffers to the new one.
         flat_batch: the batch as one flat graph where the model allows it (:func:`batch_loss`).
+        clot_mean_weight: extra weight of the clot-wide error in the loss (:func:`batch_loss`).
     Returns:
         The jitted step. ``metrics`` adds ``grad_norm`` and ``lr``-independent scalars.
     """
@@ -297,7 +306,7 @@ def make_train_step(
                 direction_noise=direction_noise, swell_noise=swell_noise,
                 time_scale=time_scale, k=k,
                 pushforward=pushforward,
-                flat_batch=flat_batch,
+                flat_batch=flat_batch, clot_mean_weight=clot_mean_weight,
             )
 
         (_, metrics), grads = jax.value_and_grad(loss_fn, has_aux=True)(state.params)
