@@ -10,7 +10,7 @@ import numpy as np
 __all__ = ["Rung", "RUNGS", "COMMON", "STUDY_SIZE", "SMALL_MGN", "SIGNED", "HISTNOISE",
            "WALK", "AXIS", "AXIS_SIGNED", "FOLLOW", "FOLLOW_NOHIST",
            "FOLLOW_HISTNOISE", "FOLLOW_STEADY", "AXIS_SWELL", "AXIS_SWELL10", "AXIS_SWELL03",
-           "AXIS_SIGNED_SWELL10", "AXIS_SWELL10_CM", "AXIS_CM"]
+           "AXIS_SIGNED_SWELL10", "AXIS_SWELL10_CM", "AXIS_CM", "FOLLOW_NOHIST_CM"]
 
 SMALL_MGN = {"hidden": 32, "processor_size": 5, "max_neighbors": 12}
 _SCHEDULE = {"max_rotation": 0.0, "warmup_epochs": 2.0}
@@ -76,6 +76,10 @@ FOLLOW_HISTNOISE = {**FOLLOW, "history_noise": 0.02}
 # from the dataset's ``skip_frames`` on: the start from rest, which the model cannot tell
 # from the steady slide without the history, left out)
 FOLLOW_STEADY = {**FOLLOW_NOHIST, "skip_frames": "dataset"}
+# the prior without the history frame, the clot-wide error weighted 10x: the prior turns the
+# clot's motion onto the vessel (with the weight alone, ClotEntry's rollout drifted sideways
+# into the wall and stalled), the weighted loss fits the clot's speed changes along it
+FOLLOW_NOHIST_CM = {**FOLLOW_NOHIST, "clot_mean_weight": 10.0}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -270,6 +274,11 @@ RUNGS: tuple[Rung, ...] = (
     Rung("axis_cm_last", AXIS_CM, checkpoint="last"),
     Rung("axis_cm_last_guards", AXIS_CM, guards=True, reuse="axis_cm_last",
          checkpoint="last"),
+    # the prior without the history frame and the clot-wide error weighted: last checkpoint,
+    # alone and guarded
+    Rung("follow_nohist_cm_last", FOLLOW_NOHIST_CM, checkpoint="last"),
+    Rung("follow_nohist_cm_last_guards", FOLLOW_NOHIST_CM, guards=True,
+         reuse="follow_nohist_cm_last", checkpoint="last"),
     # the split with the vessel-following prior, guarded and alone
     Rung("follow", FOLLOW, guards=True),
     Rung("follow_alone", FOLLOW, reuse="follow"),
