@@ -274,6 +274,11 @@ RUNGS: tuple[Rung, ...] = (
     Rung("axis_cm_last", AXIS_CM, checkpoint="last"),
     Rung("axis_cm_last_guards", AXIS_CM, guards=True, reuse="axis_cm_last",
          checkpoint="last"),
+    # the prior without the history frame, last checkpoint, alone and guarded (the control of
+    # the two below)
+    Rung("follow_nohist_last", FOLLOW_NOHIST, checkpoint="last"),
+    Rung("follow_nohist_last_guards", FOLLOW_NOHIST, guards=True, reuse="follow_nohist_last",
+         checkpoint="last"),
     # the prior without the history frame and the clot-wide error weighted: last checkpoint,
     # alone and guarded
     Rung("follow_nohist_cm_last", FOLLOW_NOHIST_CM, checkpoint="last"),
