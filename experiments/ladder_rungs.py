@@ -10,7 +10,7 @@ import numpy as np
 __all__ = ["Rung", "RUNGS", "COMMON", "STUDY_SIZE", "SMALL_MGN", "SIGNED", "HISTNOISE",
            "WALK", "AXIS", "AXIS_SIGNED", "FOLLOW", "FOLLOW_NOHIST",
            "FOLLOW_HISTNOISE", "FOLLOW_STEADY", "AXIS_SWELL", "AXIS_SWELL10", "AXIS_SWELL03",
-           "AXIS_SIGNED_SWELL10", "AXIS_SWELL10_CM", "AXIS_CM", "FOLLOW_NOHIST_CM"]
+           "AXIS_SIGNED_SWELL10", "AXIS_SWELL10_CM", "FOLLOW_NOHIST_CM"]
 
 SMALL_MGN = {"hidden": 32, "processor_size": 5, "max_neighbors": 12}
 _SCHEDULE = {"max_rotation": 0.0, "warmup_epochs": 2.0}
@@ -66,7 +66,6 @@ AXIS_SIGNED_SWELL10 = {**AXIS_SIGNED, "swell_noise": 0.1}
 # model's clot-mean acceleration along its motion was off by about ten times the truth's
 # (which is near 0), even on its training simulations; a rollout integrates exactly that error
 AXIS_SWELL10_CM = {**AXIS_SWELL10, "clot_mean_weight": 10.0}
-AXIS_CM = {**AXIS, "clot_mean_weight": 10.0}
 # it without the history frame (the model cannot carry its last acceleration over: with the
 # history, ``history_gain`` 0.94-1.07 and the clot sped up along the vessel), and it with the
 # history kept but its clot-wide acceleration noised (history noise 0.02 r)
@@ -266,14 +265,11 @@ RUNGS: tuple[Rung, ...] = (
          checkpoint="last"),
     Rung("axis_signed_swell10_last_guards", AXIS_SIGNED_SWELL10, guards=True,
          reuse="axis_signed_swell10", checkpoint="last"),
-    # the clot-wide error weighted 10x, with and without the 10 % swell noise: last checkpoints,
-    # alone and guarded
+    # the 10 % swell noise with the clot-wide error weighted 10x: last checkpoint, alone and
+    # guarded
     Rung("axis_swell10_cm_last", AXIS_SWELL10_CM, checkpoint="last"),
     Rung("axis_swell10_cm_last_guards", AXIS_SWELL10_CM, guards=True,
          reuse="axis_swell10_cm_last", checkpoint="last"),
-    Rung("axis_cm_last", AXIS_CM, checkpoint="last"),
-    Rung("axis_cm_last_guards", AXIS_CM, guards=True, reuse="axis_cm_last",
-         checkpoint="last"),
     # the prior without the history frame, last checkpoint, alone and guarded (the control of
     # the two below)
     Rung("follow_nohist_last", FOLLOW_NOHIST, checkpoint="last"),

@@ -115,15 +115,14 @@ def block_summary(rows: list[tuple[int, float, float]], start: int, size: int) -
     a = a[a[:, 0] >= start]
     if not len(a):
         return f"  no frames from {start}"
+    last = int(a[-1, 0])
+    spans = [(lo, min(lo + size, last + 1) - 1) for lo in range(start, last + 1, size)]
     lines = []
-    edges = list(range(start, int(a[-1, 0]) + 1, size))
-    for lo in edges + [None]:
-        sel = a if lo is None else a[(a[:, 0] >= lo) & (a[:, 0] < lo + size)]
+    for lo, hi in spans + [(start, last)]:
+        sel = a[(a[:, 0] >= lo) & (a[:, 0] <= hi)]
         corr = np.corrcoef(sel[:, 1], sel[:, 2])[0, 1] if len(sel) > 2 else float("nan")
-        what = f"frames {start}-{int(a[-1, 0])}" if lo is None else \
-            f"frames {lo}-{min(lo + size, int(a[-1, 0]) + 1) - 1}"
-        lines.append(f"  {what}: true {sel[:, 1].mean():+.2f}, predicted {sel[:, 2].mean():+.2f}"
-                     f" milli-r/frame^2 (correlation {corr:+.2f})")
+        lines.append(f"  frames {lo}-{hi}: true {sel[:, 1].mean():+.2f}, predicted "
+                     f"{sel[:, 2].mean():+.2f} milli-r/frame^2 (correlation {corr:+.2f})")
     return "\n".join(lines)
 
 

@@ -282,6 +282,16 @@ def window_batch(windows):
                  generated=np.zeros(len(windows), bool))
 
 
+def clot_acceleration_stats(batch):
+    """:class:`~thrombojax.types.TargetStats` of a batch's 3-frame windows: the mean and std per
+    axis of ``s_{t+1} - 2 s_t + s_{t-1}`` over its real clot nodes (velocity_std 1)."""
+    from thrombojax.types import NodeType, TargetStats
+
+    acc = batch.frames[:, 2] - 2 * batch.frames[:, 1] + batch.frames[:, 0]
+    clot = (batch.node_type == NodeType.CLOT) & batch.mask
+    return TargetStats(mean=jnp.asarray(acc[clot].mean(0)), std=jnp.asarray(acc[clot].std(0)))
+
+
 def train_tiny_step(step, batch, stats, steps: int = 200, **options):
     """Train a learned step on one batch for ``steps`` Adam steps (lr 3e-3, key i at step i)
     with the training ``options`` of :func:`thrombojax.train.step.make_train_step`; returns

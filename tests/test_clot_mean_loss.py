@@ -1,13 +1,14 @@
 """The clot-wide error term of the loss (``clot_mean_weight``): its value, and that weighting it
 fits the clot's mean motion where the plain per-node MSE, drowned in per-node noise, does not."""
 
+import dataclasses
+
 import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from dataset_factory import synthetic_window
+from dataset_factory import clot_acceleration_stats, synthetic_window, window_batch
 
-from thrombojax.data.batching import Batch
 from thrombojax.errors import ConfigError
 from thrombojax.models.registry import create_model, get_config
 from thrombojax.simulator.step import make_step
@@ -19,21 +20,13 @@ from thrombojax.types import NodeType, TargetStats
 
 
 def _batch(n=2, seed=0):
-    ws = [synthetic_window(seed + s, n_clot=20, n_pad=4) for s in range(n)]
-    return Batch(frames=np.stack([w[0] for w in ws]), node_type=np.stack([w[1] for w in ws]),
-                 mask=np.stack([w[2] for w in ws]), generated=np.zeros(n, bool))
-
-
-def _stats(batch):
-    acc = batch.frames[:, 2] - 2 * batch.frames[:, 1] + batch.frames[:, 0]
-    clot = (batch.node_type == NodeType.CLOT) & batch.mask
-    return TargetStats(mean=jnp.asarray(acc[clot].mean(0)), std=jnp.asarray(acc[clot].std(0)))
+    return window_batch([synthetic_window(seed + s, n_clot=20, n_pad=4) for s in range(n)])
 
 
 def test_clot_mean_term_is_the_squared_error_of_the_clot_mean():
     model = create_model("mgn", get_config("mgn", tiny=True))
     batch = _batch(2)
-    stats = _stats(batch)
+    stats = clot_acceleration_stats(batch)
     params = init_state(model, make_optimizer(1e-3), jax.random.PRNGKey(0), batch).params
     step = make_step(model)
     frames, nt, mask = (jnp.asarray(x[0]) for x in (batch.frames, batch.node_type, batch.mask))
@@ -61,7 +54,7 @@ def test_clot_mean_term_is_the_squared_error_of_the_clot_mean():
 def test_flat_batch_keeps_the_clot_mean_term():
     model = create_model("mgn", get_config("mgn", tiny=True))
     batch = _batch(2)
-    stats = _stats(batch)
+    stats = clot_acceleration_stats(batch)
     params = init_state(model, make_optimizer(1e-3), jax.random.PRNGKey(0), batch).params
     args = dict(train=False, clot_mean_weight=5.0)
     vm = batch_loss(model, params, stats, batch, None, **args)[0]
@@ -76,15 +69,14 @@ def _drag_batch(seed, n=8, n_vessel=40, n_clot=20):
     rng = np.random.default_rng(seed)
     ang = np.linspace(0, 2 * np.pi, n_vessel, endpoint=False)
     vessel = np.stack([0.6 * np.cos(ang), 0.6 * np.sin(ang), np.zeros(n_vessel)], 1)
-    frames = []
+    node_type = np.array([0] * n_vessel + [1] * n_clot, np.int32)
+    windows = []
     for _ in range(n):
         clot = 0.15 * rng.standard_normal((n_clot, 3))
         v = 0.02 * rng.standard_normal(3)
-        s = [clot, clot + v, clot + 2 * v - v / 2]
-        frames.append([np.concatenate([vessel, c]) for c in s])
-    node_type = np.tile(np.array([0] * n_vessel + [1] * n_clot, np.int32), (n, 1))
-    return Batch(frames=np.asarray(frames, np.float32), node_type=node_type,
-                 mask=np.ones(node_type.shape, bool), generated=np.zeros(n, bool))
+        frames = [np.concatenate([vessel, c]) for c in (clot, clot + v, clot + 2 * v - v / 2)]
+        windows.append((np.asarray(frames, np.float32), node_type, np.ones(len(node_type), bool)))
+    return window_batch(windows)
 
 
 def _noisy(batch, rng, std):
@@ -95,8 +87,7 @@ def _noisy(batch, rng, std):
     noise = np.where(clot[..., None], std * rng.standard_normal(frames[:, 2].shape), 0.0)
     noise -= clot[..., None] * noise.sum(1, keepdims=True) / clot.sum(1)[:, None, None]
     frames[:, 2] += noise.astype(np.float32)
-    return Batch(frames=frames, node_type=batch.node_type, mask=batch.mask,
-                 generated=batch.generated)
+    return dataclasses.replace(batch, frames=frames)
 
 
 def _clot_mean_error_after_training(weight, seed, steps=20):

@@ -11,7 +11,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from dataset_factory import synthetic_window
+from dataset_factory import clot_acceleration_stats, synthetic_window
 from tree_helpers import TOL, assert_trees_close, perturbed
 
 from thrombojax.data.batching import Batch
@@ -22,7 +22,6 @@ from thrombojax.simulator.flat import FlatStep, flat_batch_ok, flatten_graphs
 from thrombojax.simulator.step import make_step
 from thrombojax.train.schedule import make_optimizer
 from thrombojax.train.step import batch_loss, init_state, make_train_step
-from thrombojax.types import NodeType, TargetStats
 
 N_FRAMES = 5  # s_t-1 .. s_t+3: enough for k = 2 after one push-forward step
 
@@ -41,18 +40,12 @@ def _batch(size=3):
                  mask=np.stack([w[2] for w in windows]), generated=np.zeros(size, bool))
 
 
-def _stats(batch):
-    acc = batch.frames[:, 2] - 2 * batch.frames[:, 1] + batch.frames[:, 0]
-    clot = (batch.node_type == NodeType.CLOT) & batch.mask
-    return TargetStats(mean=jnp.asarray(acc[clot].mean(0)), std=jnp.asarray(acc[clot].std(0)))
-
-
 def _setup(name="mgn", **step_options):
     model = create_model(name, get_config(name, tiny=True))
     batch = _batch()
     step = make_step(model, **step_options)
     state = init_state(step, make_optimizer(1e-3), jax.random.PRNGKey(0), batch)
-    return step, perturbed(state.params), _stats(batch), batch
+    return step, perturbed(state.params), clot_acceleration_stats(batch), batch
 
 
 def _loss_and_grads(step, params, stats, batch, flat, **options):

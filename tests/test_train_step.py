@@ -4,7 +4,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from dataset_factory import synthetic_window
+from dataset_factory import clot_acceleration_stats, synthetic_window
 
 from thrombojax.data.batching import Batch
 from thrombojax.models.registry import MODEL_NAMES, create_model, get_config
@@ -13,7 +13,7 @@ from thrombojax.train.loss import window_loss_terms
 from thrombojax.train.noise import add_training_noise
 from thrombojax.train.schedule import make_optimizer, make_schedule
 from thrombojax.train.step import batch_loss, init_state, make_eval_step, make_train_step
-from thrombojax.types import NodeType, TargetStats
+from thrombojax.types import NodeType
 
 TRAINABLE = [name for name in MODEL_NAMES if name != "constant_velocity"]
 
@@ -29,12 +29,6 @@ def _batch(n=4):
         frames=np.stack([w[0] for w in ws]), node_type=np.stack([w[1] for w in ws]),
         mask=np.stack([w[2] for w in ws]), generated=np.zeros(n, bool),
     )
-
-
-def _stats(batch):
-    acc = batch.frames[:, 2] - 2 * batch.frames[:, 1] + batch.frames[:, 0]
-    clot = (batch.node_type == NodeType.CLOT) & batch.mask
-    return TargetStats(mean=jnp.asarray(acc[clot].mean(0)), std=jnp.asarray(acc[clot].std(0)))
 
 
 def test_schedule_warmup_then_cosine():
@@ -68,7 +62,7 @@ def _masked_mean(x, clot):
 def test_losses_are_masked_means_over_clot_nodes():
     model = create_model("mgn", get_config("mgn", tiny=True))
     batch = _batch(1)
-    stats = _stats(batch)
+    stats = clot_acceleration_stats(batch)
     frames, nt, mask = (jnp.asarray(x[0]) for x in (batch.frames, batch.node_type, batch.mask))
     state = init_state(model, make_optimizer(1e-3), jax.random.PRNGKey(0), batch)
     step = make_step(model)
@@ -92,7 +86,7 @@ def test_k_step_loss_feeds_predictions_back():
     """k = 2 on a 4-frame window: step 2 starts from the prediction and aims at the true s_t+2."""
     model = create_model("mgn", get_config("mgn", tiny=True))
     batch = _batch(1)
-    stats = _stats(batch)
+    stats = clot_acceleration_stats(batch)
     f3, nt, mask = (jnp.asarray(x[0]) for x in (batch.frames, batch.node_type, batch.mask))
     frames = jnp.concatenate([f3, (2 * f3[2] - f3[1])[None]])  # 4 frames: s_t+2 ahead
     params = init_state(model, make_optimizer(1e-3), jax.random.PRNGKey(0), batch).params
@@ -120,7 +114,7 @@ def test_k_step_loss_feeds_predictions_back():
 def test_train_step_updates_and_eval_is_deterministic():
     model = create_model("mgn", get_config("mgn", tiny=True))
     batch = _batch(2)
-    stats = _stats(batch)
+    stats = clot_acceleration_stats(batch)
     tx = make_optimizer(1e-3, grad_clip=1.0)
     state = init_state(model, tx, jax.random.PRNGKey(0), batch)
     before = jax.tree.map(np.asarray, state.params)
@@ -192,7 +186,7 @@ def test_pushforward_starts_the_loss_from_the_models_own_prediction():
     """p = 1: the loss step starts from (s_t, stop_gradient(s^_t+1)) and aims at s_t+2."""
     model = create_model("mgn", get_config("mgn", tiny=True))
     batch = _batch(1)
-    stats = _stats(batch)
+    stats = clot_acceleration_stats(batch)
     f3, nt, mask = (jnp.asarray(x[0]) for x in (batch.frames, batch.node_type, batch.mask))
     frames = jnp.concatenate([f3, (2 * f3[2] - f3[1])[None]])
     params = init_state(model, make_optimizer(1e-3), jax.random.PRNGKey(0), batch).params
