@@ -280,6 +280,12 @@ RUNGS: tuple[Rung, ...] = (
     Rung("follow_nohist_cm_last", FOLLOW_NOHIST_CM, checkpoint="last"),
     Rung("follow_nohist_cm_last_guards", FOLLOW_NOHIST_CM, guards=True,
          reuse="follow_nohist_cm_last", checkpoint="last"),
+    # its seeds 0-2 as an ensemble, guarded and alone (each member also scored alone: the
+    # seed spread)
+    Rung("follow_nohist_cm_last_ens3_guards", FOLLOW_NOHIST_CM, guards=True,
+         reuse="follow_nohist_cm_last", members=3, checkpoint="last"),
+    Rung("follow_nohist_cm_last_seeds3", FOLLOW_NOHIST_CM, reuse="follow_nohist_cm_last",
+         members=3, checkpoint="last"),
     # the split with the vessel-following prior, guarded and alone
     Rung("follow", FOLLOW, guards=True),
     Rung("follow_alone", FOLLOW, reuse="follow"),

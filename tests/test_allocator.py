@@ -59,3 +59,28 @@ def test_command_reexecs_under_tcmalloc_and_opt_out_works(tmp_path):
     assert "ARGV0 -c" not in on.stderr and "__main__.py" in on.stderr, on.stderr
     off = _command_under({OPT_OUT: "1"}, tmp_path)
     assert off.returncode == 2 and "MAPS False" in off.stderr, off.stderr
+
+
+@pytest.mark.skipif(find_tcmalloc() is None or not sys.platform.startswith("linux"),
+                    reason="tcmalloc is not installed here")
+def test_script_reexecs_under_tcmalloc_once_with_its_arguments(tmp_path):
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    script = tmp_path / "job.py"
+    script.write_text(
+        "import sys\n"
+        "from thrombojax.cli.allocator import reexec_script_with_tcmalloc\n"
+        "if __name__ == '__main__':\n"
+        "    print('START', flush=True)\n"
+        "    reexec_script_with_tcmalloc(sys.argv[0], sys.argv[1:])\n"
+        "    print('MAPS', 'tcmalloc' in open('/proc/self/maps').read(), sys.argv[1:])\n")
+    env = {k: v for k, v in os.environ.items() if k not in ("LD_PRELOAD", OPT_OUT)}
+    env["PYTHONPATH"] = root
+
+    def run(**extra):
+        return subprocess.run([sys.executable, str(script), "--a", "b c"], env={**env, **extra},
+                              capture_output=True, text=True, timeout=120).stdout
+
+    on = run()
+    assert on.count("START") == 2 and "MAPS True ['--a', 'b c']" in on, on  # one re-exec
+    off = run(**{OPT_OUT: "1"})
+    assert off.count("START") == 1 and "MAPS False ['--a', 'b c']" in off, off

@@ -27,7 +27,7 @@ import sys
 from collections.abc import Mapping, Sequence
 
 __all__ = ["LIBRARY_NAMES", "SEARCH_DIRS", "OPT_OUT", "find_tcmalloc", "preload_environment",
-           "reexec_with_tcmalloc"]
+           "reexec_with_tcmalloc", "reexec_script_with_tcmalloc"]
 
 LIBRARY_NAMES: tuple[str, ...] = ("libtcmalloc_minimal.so.4", "libtcmalloc.so.4")
 """tcmalloc builds to look for, preferred first (the minimal one has no heap profiler)."""
@@ -74,6 +74,25 @@ def reexec_with_tcmalloc(argv: Sequence[str]) -> None:
     Returns (doing nothing) when :func:`preload_environment` says no, off Linux, or when the
     exec fails; on success it does not return.
     """
+    # the same thrombojax as this process, whatever the working directory holds
+    root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    # argv[0] as the user ran it (not "-c"): results record the command they ran
+    code = f"import sys; sys.argv[0] = {sys.argv[0]!r}; sys.path.insert(0, {root!r}); " \
+           "from thrombojax.cli import main; sys.exit(main())"
+    _exec_under_tcmalloc([sys.executable, "-c", code, *argv])
+
+
+def reexec_script_with_tcmalloc(script: str, argv: Sequence[str]) -> None:
+    """Replace this process by ``python script argv`` under tcmalloc, when due.
+
+    For the long experiment scripts run as ``python experiments/<name>.py`` (not through the
+    ``thrombojax`` command): call it first in their ``__main__`` block. The same rules and
+    opt-out as :func:`reexec_with_tcmalloc`.
+    """
+    _exec_under_tcmalloc([sys.executable, script, *argv])
+
+
+def _exec_under_tcmalloc(args: list[str]) -> None:
     if not sys.platform.startswith("linux"):
         return
     env = preload_environment(os.environ, find_tcmalloc())
@@ -81,12 +100,7 @@ def reexec_with_tcmalloc(argv: Sequence[str]) -> None:
         return
     sys.stdout.flush()
     sys.stderr.flush()
-    # the same thrombojax as this process, whatever the working directory holds
-    root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-    # argv[0] as the user ran it (not "-c"): results record the command they ran
-    code = f"import sys; sys.argv[0] = {sys.argv[0]!r}; sys.path.insert(0, {root!r}); " \
-           "from thrombojax.cli import main; sys.exit(main())"
     try:
-        os.execve(sys.executable, [sys.executable, "-c", code, *argv], env)
+        os.execve(args[0], args, env)
     except OSError:
         return

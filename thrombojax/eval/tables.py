@@ -50,6 +50,8 @@ def environment() -> dict:
         "n_devices": jax.device_count(),
         "cpu_count": os.cpu_count(),
         "load_avg_1_5_15": [round(x, 2) for x in os.getloadavg()],
+        # tcmalloc makes a CPU training step faster (docs/performance.md): timings depend on it
+        "allocator": "tcmalloc" if "tcmalloc" in os.environ.get("LD_PRELOAD", "") else "default",
         "python": platform.python_version(),
         "platform": platform.platform(),
         "jax": jax.__version__,
