@@ -299,6 +299,6 @@ def _transfer(other: pathlib.Path, results: dict, out: pathlib.Path, args, split
 
 
 if __name__ == "__main__":
-    # its trainings under tcmalloc, as the thrombojax command's (about 12 % faster per step)
+    # its trainings under tcmalloc, as the thrombojax command's (docs/performance.md)
     allocator.reexec_script_with_tcmalloc(sys.argv[0], sys.argv[1:])
     sys.exit(main())
