@@ -9,6 +9,13 @@ import pytest
 from thrombojax.cli.allocator import OPT_OUT, find_tcmalloc, preload_environment
 
 LIB = "/usr/lib/x86_64-linux-gnu/libtcmalloc_minimal.so.4"
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))  # the repository
+
+
+def _clean_environment(pythonpath: str, **extra) -> dict:
+    """This process's environment without a preload or the opt-out, plus ``extra``."""
+    env = {k: v for k, v in os.environ.items() if k not in ("LD_PRELOAD", OPT_OUT)}
+    return {**env, "PYTHONPATH": pythonpath, **extra}
 
 
 def test_preload_environment_prepends_the_library():
@@ -42,9 +49,7 @@ def _command_under(extra_env, tmp_path):
         "atexit.register(lambda: sys.stderr.write("
         "'MAPS %s\\n' % ('tcmalloc' in open('/proc/self/maps').read())))\n"
         "atexit.register(lambda: sys.stderr.write('ARGV0 %s\\n' % sys.argv[0]))\n")
-    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-    env = {k: v for k, v in os.environ.items() if k not in ("LD_PRELOAD", OPT_OUT)}
-    env.update(PYTHONPATH=os.pathsep.join([str(tmp_path), root]), **extra_env)
+    env = _clean_environment(os.pathsep.join([str(tmp_path), ROOT]), **extra_env)
     return subprocess.run([sys.executable, "-m", "thrombojax", "info", "/nonexistent.h5"],
                           env=env, capture_output=True, text=True, timeout=120)
 
@@ -64,7 +69,6 @@ def test_command_reexecs_under_tcmalloc_and_opt_out_works(tmp_path):
 @pytest.mark.skipif(find_tcmalloc() is None or not sys.platform.startswith("linux"),
                     reason="tcmalloc is not installed here")
 def test_script_reexecs_under_tcmalloc_once_with_its_arguments(tmp_path):
-    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
     script = tmp_path / "job.py"
     script.write_text(
         "import sys\n"
@@ -73,11 +77,9 @@ def test_script_reexecs_under_tcmalloc_once_with_its_arguments(tmp_path):
         "    print('START', flush=True)\n"
         "    reexec_script_with_tcmalloc(sys.argv[0], sys.argv[1:])\n"
         "    print('MAPS', 'tcmalloc' in open('/proc/self/maps').read(), sys.argv[1:])\n")
-    env = {k: v for k, v in os.environ.items() if k not in ("LD_PRELOAD", OPT_OUT)}
-    env["PYTHONPATH"] = root
-
     def run(**extra):
-        return subprocess.run([sys.executable, str(script), "--a", "b c"], env={**env, **extra},
+        return subprocess.run([sys.executable, str(script), "--a", "b c"],
+                              env=_clean_environment(ROOT, **extra),
                               capture_output=True, text=True, timeout=120).stdout
 
     on = run()
