@@ -94,11 +94,13 @@ training range):
   outside the vessel (``thrombojax.eval.metrics``), and the guards' largest correction; each
   rung's ``result.json`` also keeps, per simulation and step, the MSE (model and CV), the share
   of clot nodes outside, the centroid error and the centroid's speed (model and truth, radii
-  per frame), and for a single model with a history its history gain
-  (``thrombojax.eval.drift``: the share of a change of the history's acceleration it carries
-  over, mean over the rollout's frames) and for every single model its speed carry (the share
-  of a 5 % clot-wide speed error in its inputs that it keeps: 1 for constant velocity) and
-  direction carry (the share of a 0.1 rad sideways turn of its input motion it keeps).
+  per frame), the centroid error split along and across the true clot's track and the clot's
+  size against the truth's (``thrombojax.eval.track``; also at the last frame), and for a
+  single model with a history its history gain (``thrombojax.eval.drift``: the share of a
+  change of the history's acceleration it carries over, mean over the rollout's frames) and
+  for every single model its speed carry (the share of a 5 % clot-wide speed error in its
+  inputs that it keeps: 1 for constant velocity) and direction carry (the share of a 0.1 rad
+  sideways turn of its input motion it keeps).
 
 Resumable: a rung whose ``result.json`` exists is skipped; a rung whose training was killed
 resumes from its last checkpoint. Writes ``table.md``, ``ladder.json`` and

@@ -30,6 +30,7 @@ from thrombojax.eval.single_step import (
     scaled_simulation,
     single_step_errors,
 )
+from thrombojax.eval.track import size_ratio, track_errors
 from thrombojax.eval.uncertainty import uncertainty_summary
 from thrombojax.io.hdf5 import open_dataset
 from thrombojax.models.registry import create_model, identity_stats
@@ -120,6 +121,8 @@ def evaluate_runs(runs: list[pathlib.Path], data: str, guards: bool,
             extra["swell_carry"] = float(swell_carry(
                 step, trained.params, trained.stats, pos, nt, np.arange(skip, pos.shape[0] - 1),
                 delta=0.02).mean())
+        along, across = track_errors(pred, true, clot, start=pos[skip])
+        size = size_ratio(pred, true, clot)
         per_sim[name] = {
             "mse1_all": float(m1.mean()) / r**2, "mse1_all_cv": float(c1.mean()) / r**2,
             "mse1_phase": float(m1[phase].mean()) / r**2,
@@ -137,6 +140,12 @@ def evaluate_runs(runs: list[pathlib.Path], data: str, guards: bool,
             "speed_per_step_r": (centroid_speed(np.concatenate([pos[skip:skip + 1], pred]), clot)
                                  / r).tolist(),
             "speed_true_per_step_r": (centroid_speed(pos[skip:], clot) / r).tolist(),
+            # the centroid error along / across the true track, the clot's size against the
+            # truth's (thrombojax.eval.track)
+            "final_along_r": float(along[-1]) / r, "final_across_r": float(across[-1]) / r,
+            "final_size_ratio": float(size[-1]),
+            "along_per_step_r": (along / r).tolist(), "across_per_step_r": (across / r).tolist(),
+            "size_ratio_per_step": size.tolist(),
             **extra,
         }
     keys = [k for k, v in next(iter(per_sim.values())).items()

@@ -8,6 +8,8 @@ Modules: :mod:`~thrombojax.eval.metrics` (errors, centroid, containment),
 :mod:`~thrombojax.eval.rollouts` (a rollout measured beside the truth and constant velocity),
 :mod:`~thrombojax.eval.drift` (a rollout's speed-up: the clot's speed per step, a step's
 history gain),
+:mod:`~thrombojax.eval.track` (a rollout's centroid error along and across the true track, its
+clot's size against the truth's),
 :mod:`~thrombojax.eval.report` (``thrombojax rollout``: trajectories, ParaView files, plots),
 :mod:`~thrombojax.eval.plots` (matplotlib figures and animations),
 :mod:`~thrombojax.eval.bench` (rollout speed, ``thrombojax bench``) and
