@@ -4,22 +4,25 @@ error along and across the true track and the clot's size, ``thrombojax.eval.tra
 the environment and command.
 
     python experiments/results/ladder_gpu/fifth_session/track_reroll.py OUT.json \
-        RUN[,RUN...] guards|alone [--dataset data/clotentry.h5] [--nodes 2048]
+        RUN[,RUN...] guards|alone [--dataset data/clotentry.h5] [--nodes 2048] \
+        [--without containment|coherence]
 
 RUN: training run folders with ``config.json`` and ``checkpoints/last`` (several: an
 ensemble, rolled out as independent members with their mean guarded).
 """
 import argparse
+import functools
 import json
 import pathlib
 import sys
 
 ROOT = pathlib.Path(__file__).resolve().parents[4]
 sys.path.insert(0, str(ROOT / "experiments"))
-from ladder_eval import evaluate_runs  # noqa: E402
+import ladder_eval  # noqa: E402
 
 from thrombojax.eval.tables import environment  # noqa: E402
 from thrombojax.io.outputs import atomic_write_text  # noqa: E402
+from thrombojax.simulator.guard_set import build_guards  # noqa: E402
 
 parser = argparse.ArgumentParser(description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -28,12 +31,19 @@ parser.add_argument("runs")
 parser.add_argument("guards", choices=["guards", "alone"])
 parser.add_argument("--dataset", default=str(ROOT / "data" / "clotentry.h5"))
 parser.add_argument("--nodes", type=int, default=2048)
+parser.add_argument("--without", choices=["containment", "coherence"],
+                    help="with guards: switch this one off (which guard does what)")
 args = parser.parse_args()
 out = pathlib.Path(args.out)
 if out.exists():
     raise SystemExit(f"track_reroll: {out} exists; not replacing it")
 runs = [pathlib.Path(p) for p in args.runs.split(",")]
-res = evaluate_runs(runs, args.dataset, args.guards == "guards", args.nodes, which="last")
+if args.without:
+    ladder_eval.build_guards = functools.partial(build_guards, **{args.without: False})
+if args.without and args.guards != "guards":
+    raise SystemExit("track_reroll: --without switches off one guard; it needs 'guards'")
+res = ladder_eval.evaluate_runs(runs, args.dataset, args.guards == "guards", args.nodes,
+                                which="last")
 atomic_write_text(out, json.dumps({"environment": environment(), "result": res}, indent=1))
 for name, s in res["simulations"].items():
     print(f"{name}: final centroid {s['final_centroid_r']:.2f} r, along {s['final_along_r']:+.2f}"
