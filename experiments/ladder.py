@@ -188,6 +188,12 @@ def _member_folder(rung: Rung, out: pathlib.Path, seed: int) -> pathlib.Path:
     return out / base.name / f"member_{seed}"
 
 
+def member_rung(rung: Rung, seed: int) -> Rung:
+    """Member ``seed`` (>= 1) of an ensemble rung: the rung's recipe with that seed."""
+    return dataclasses.replace(rung, name=f"{rung.name} member {seed}",
+                               train={**rung.train, "seed": seed})
+
+
 def _member_runs(rung: Rung, out: pathlib.Path, data: str, split: dict,
                  n_nodes: int | None, common: dict = COMMON) -> list[pathlib.Path]:
     """The runs a rung evaluates: its own (or ``reuse``'s), plus for an ensemble members
@@ -202,10 +208,8 @@ def _member_runs(rung: Rung, out: pathlib.Path, data: str, split: dict,
     for seed in range(1, rung.members):
         folder = _member_folder(rung, out, seed)
         folder.mkdir(parents=True, exist_ok=True)
-        member = dataclasses.replace(rung, name=f"{rung.name} member {seed}",
-                                     train={**rung.train, "seed": seed})
-        runs.append(_train_rung(member, data, folder, split, 0.0, epochs, epochs, n_nodes,
-                                common))
+        runs.append(_train_rung(member_rung(rung, seed), data, folder, split, 0.0, epochs,
+                                epochs, n_nodes, common))
     return runs
 
 

@@ -51,11 +51,13 @@ __all__ = ["evaluate_runs", "members_alone"]
 
 def evaluate_runs(runs: list[pathlib.Path], data: str, guards: bool,
                   n_nodes: int | None = None, names: list[str] | None = None,
-                  which: str = "best", committee: bool = False) -> dict:
+                  which: str = "best", committee: bool = False,
+                  guard_options: dict | None = None) -> dict:
     """Roll the runs (one model, or an ensemble; each run's ``which`` checkpoint) out on the
     simulations ``names`` of ``data`` (default: the first run's test split) and measure them
     against constant velocity. An ensemble is rolled out as independent members (their mean
-    guarded) or, with ``committee``, as a committee (the members' mean step fed back)."""
+    guarded) or, with ``committee``, as a committee (the members' mean step fed back).
+    ``guard_options``: keyword arguments of ``build_guards`` (e.g. ``{"coherence": False}``)."""
     members = [load_trained(run, which=which) for run in runs]
     trained = members[0]
     ds = open_dataset(data)
@@ -74,7 +76,8 @@ def evaluate_runs(runs: list[pathlib.Path], data: str, guards: bool,
         n = pos.shape[0] - 1 - skip
         mask = np.ones(len(nt), bool)
         g = build_guards(full[0], full_nt, pos[skip], nt, radius=r,
-                         wall_cells=ds[name].wall_cells) if guards else None
+                         wall_cells=ds[name].wall_cells, **(guard_options or {})) \
+            if guards else None
         true = pos[skip + 1:]
         extra = {}
         if len(members) == 1:

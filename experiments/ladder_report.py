@@ -23,11 +23,13 @@ __all__ = ["write_reports", "table", "seed_lines", "uncertainty_lines", "plot_er
 
 
 def write_reports(out: pathlib.Path, results: dict, *, title: str, test_sims: list[str],
-                  nodes: int | None) -> str:
+                  nodes: int | None, env: dict | None = None) -> str:
     """Write ``table.md``, ``ladder.json`` and ``error_per_step.png`` into ``out`` (atomically);
-    returns the markdown table."""
+    returns the markdown table. ``env``: the record of where the results were measured
+    (default: this process's :func:`environment`; pass the measuring machine's when the report
+    is written elsewhere)."""
     text = table(results)
-    env = environment()
+    env = environment() if env is None else env
     atomic_write_text(out / "table.md",
         f"# Stability ladder ({title}, held-out simulations {', '.join(test_sims)})\n\n{text}\n"
         "Errors in vessel radii (r); ratios to constant velocity (CV). Training per rung: the "

@@ -43,6 +43,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from thrombojax.errors import ConfigError
+from thrombojax.eval.metrics import clot_centroids
 from thrombojax.eval.single_step import batched_next
 from thrombojax.simulator.step import LearnedStep
 from thrombojax.train.noise import rotation_matrix
@@ -59,9 +60,7 @@ def centroid_speed(trajectory: np.ndarray, clot_mask: np.ndarray) -> np.ndarray:
         trajectory: ``[T, n_nodes, 3]`` frames (a rollout with the frame it started from first,
             or the truth). clot_mask: ``[n_nodes]`` bool, the clot nodes.
     """
-    sel = np.asarray(clot_mask, bool)
-    centre = np.asarray(trajectory, np.float64)[:, sel].mean(axis=1)
-    return np.linalg.norm(np.diff(centre, axis=0), axis=-1)
+    return np.linalg.norm(np.diff(clot_centroids(trajectory, clot_mask), axis=0), axis=-1)
 
 
 def history_gain(

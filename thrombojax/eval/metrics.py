@@ -35,6 +35,7 @@ __all__ = [
     "DEFAULT_HORIZONS",
     "mse_per_step",
     "horizon_mse",
+    "clot_centroids",
     "centroid_error",
     "VesselWall",
     "fit_vessel_wall",
@@ -78,12 +79,15 @@ def horizon_mse(
     return out
 
 
+def clot_centroids(frames: np.ndarray, clot_mask: np.ndarray) -> np.ndarray:
+    """The clot's centroid in every frame, ``[T, 3]`` (float64)."""
+    return np.asarray(frames, np.float64)[:, np.asarray(clot_mask, bool)].mean(axis=1)
+
+
 def centroid_error(pred: np.ndarray, true: np.ndarray, clot_mask: np.ndarray) -> np.ndarray:
     """Distance between predicted and true clot centroids per frame, ``[n_steps]``."""
-    sel = np.asarray(clot_mask, bool)
-    c_pred = np.asarray(pred, np.float64)[:, sel].mean(axis=1)
-    c_true = np.asarray(true, np.float64)[:, sel].mean(axis=1)
-    return np.linalg.norm(c_pred - c_true, axis=-1)
+    return np.linalg.norm(clot_centroids(pred, clot_mask) - clot_centroids(true, clot_mask),
+                          axis=-1)
 
 
 @struct.dataclass

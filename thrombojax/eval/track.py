@@ -18,14 +18,15 @@ from __future__ import annotations
 
 import numpy as np
 
+from thrombojax.eval.metrics import clot_centroids
+
 __all__ = ["track_errors", "size_ratio"]
 
 
 def _centroids(frames: np.ndarray, clot_mask: np.ndarray) -> np.ndarray:
-    sel = np.asarray(clot_mask, bool)
-    if not sel.any():
+    if not np.asarray(clot_mask, bool).any():
         raise ValueError("track: the clot mask selects no node")
-    return np.asarray(frames, np.float64)[:, sel].mean(axis=1)
+    return clot_centroids(frames, clot_mask)
 
 
 def track_errors(pred: np.ndarray, true: np.ndarray, clot_mask: np.ndarray,

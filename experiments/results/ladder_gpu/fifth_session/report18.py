@@ -3,7 +3,8 @@
 rung's result (06:56:48 UTC) and before it scored the members alone and wrote the report; the
 checkpoints stayed on the device, so the members alone cannot be scored here. The environment
 is the device's (run.sh's ``ce_small/ladder.json``: the same device kind, image and versions),
-with run2.sh's command and time; the load was not recorded.
+with run2.sh's command and time; the load was not recorded. The members alone are not
+scored, so the table has no ``Seeds:`` line.
 
     python experiments/results/ladder_gpu/fifth_session/report18.py
 """
@@ -13,9 +14,7 @@ import sys
 
 HERE = pathlib.Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parents[2]))  # experiments/
-from ladder_report import plot_error_per_step, table, uncertainty_lines  # noqa: E402
-
-from thrombojax.io.outputs import atomic_write_text  # noqa: E402
+from ladder_report import write_reports  # noqa: E402
 
 out = HERE / "ce_small18"
 name = "follow_nohist_cm_last_ens3_guards"
@@ -26,14 +25,5 @@ env = {**json.loads((HERE / "ce_small" / "ladder.json").read_text())["environmen
                   "clotentry_008,clotentry_009 --val clotentry_007 --epochs 18 --out "
                   "/root/d/ce_small18 --rungs follow_nohist_cm_last_ens3_guards (run2.sh; the "
                   "report written afterwards by report18.py on a CPU machine)"}
-title = "ClotEntry (2,048 nodes), small MeshGraphNet, GPU"
-atomic_write_text(out / "table.md",
-    f"# Stability ladder ({title}, held-out simulations clotentry_008, clotentry_009)\n\n"
-    f"{table(results)}\nErrors in vessel radii (r); ratios to constant velocity (CV). "
-    "Each member trained 18 epochs (fixed); 2048 nodes per simulation. The members alone "
-    "were not scored (see report18.py).\n\n"
-    f"Uncertainty:\n{uncertainty_lines(results)}\n"
-    + "".join(f"- {k}: {v}\n" for k, v in env.items()))
-atomic_write_text(out / "ladder.json", json.dumps({"environment": env, "results": results},
-                                                  indent=1))
-plot_error_per_step(results, out / "error_per_step.png", title)
+write_reports(out, results, title="ClotEntry (2,048 nodes), small MeshGraphNet, GPU",
+              test_sims=["clotentry_008", "clotentry_009"], nodes=2048, env=env)

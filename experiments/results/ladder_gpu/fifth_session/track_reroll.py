@@ -11,7 +11,6 @@ RUN: training run folders with ``config.json`` and ``checkpoints/last`` (several
 ensemble, rolled out as independent members with their mean guarded).
 """
 import argparse
-import functools
 import json
 import pathlib
 import sys
@@ -22,7 +21,6 @@ import ladder_eval  # noqa: E402
 
 from thrombojax.eval.tables import environment  # noqa: E402
 from thrombojax.io.outputs import atomic_write_text  # noqa: E402
-from thrombojax.simulator.guard_set import build_guards  # noqa: E402
 
 parser = argparse.ArgumentParser(description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -38,12 +36,11 @@ out = pathlib.Path(args.out)
 if out.exists():
     raise SystemExit(f"track_reroll: {out} exists; not replacing it")
 runs = [pathlib.Path(p) for p in args.runs.split(",")]
-if args.without:
-    ladder_eval.build_guards = functools.partial(build_guards, **{args.without: False})
 if args.without and args.guards != "guards":
     raise SystemExit("track_reroll: --without switches off one guard; it needs 'guards'")
 res = ladder_eval.evaluate_runs(runs, args.dataset, args.guards == "guards", args.nodes,
-                                which="last")
+                                which="last",
+                                guard_options={args.without: False} if args.without else None)
 atomic_write_text(out, json.dumps({"environment": environment(), "result": res}, indent=1))
 for name, s in res["simulations"].items():
     print(f"{name}: final centroid {s['final_centroid_r']:.2f} r, along {s['final_along_r']:+.2f}"

@@ -22,7 +22,6 @@ if seed == 0:  # member 0 is the reused rung's own training (the ladder's folder
     member = dataclasses.replace(rung, name=rung.reuse or rung.name)
 else:
     folder = ladder._member_folder(rung, out, seed)
-    member = dataclasses.replace(rung, name=f"{rung.name} member {seed}",
-                                 train={**rung.train, "seed": seed})
+    member = ladder.member_rung(rung, seed)
 folder.mkdir(parents=True, exist_ok=True)
 print(ladder._train_rung(member, data, folder, split, 0.0, epochs, epochs, nodes, COMMON))
