@@ -4,6 +4,7 @@ simulations and measured against constant velocity in vessel radii."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import pathlib
 
@@ -52,18 +53,21 @@ __all__ = ["evaluate_runs", "members_alone"]
 def evaluate_runs(runs: list[pathlib.Path], data: str, guards: bool,
                   n_nodes: int | None = None, names: list[str] | None = None,
                   which: str = "best", committee: bool = False,
-                  guard_options: dict | None = None) -> dict:
+                  guard_options: dict | None = None, step_options: dict | None = None) -> dict:
     """Roll the runs (one model, or an ensemble; each run's ``which`` checkpoint) out on the
     simulations ``names`` of ``data`` (default: the first run's test split) and measure them
     against constant velocity. An ensemble is rolled out as independent members (their mean
     guarded) or, with ``committee``, as a committee (the members' mean step fed back).
-    ``guard_options``: keyword arguments of ``build_guards`` (e.g. ``{"coherence": False}``)."""
+    ``guard_options``: keyword arguments of ``build_guards`` (e.g. ``{"coherence": False}``).
+    ``step_options``: fields of the learned step replaced at rollout time (e.g.
+    ``{"lateral_radius": 0.06}``, the lateral hold on models trained without it)."""
     members = [load_trained(run, which=which) for run in runs]
     trained = members[0]
     ds = open_dataset(data)
     skip = max(study.skip_frames(ds), 1)
     r = vessel_radius(ds) / float(trained.scaling.scale)  # one radius, scaled coordinates
-    step, cv = trained.step, make_step(create_model("constant_velocity"))
+    step = dataclasses.replace(trained.step, **(step_options or {}))
+    cv = make_step(create_model("constant_velocity"))
     params = [m.params for m in members]
     per_sim = {}
     for name in trained.split.test if names is None else names:

@@ -10,7 +10,7 @@ import numpy as np
 __all__ = ["Rung", "RUNGS", "COMMON", "STUDY_SIZE", "SMALL_MGN", "SIGNED", "HISTNOISE",
            "WALK", "AXIS", "AXIS_SIGNED", "FOLLOW", "FOLLOW_NOHIST",
            "FOLLOW_HISTNOISE", "FOLLOW_STEADY", "AXIS_SWELL", "AXIS_SWELL10", "AXIS_SWELL03",
-           "AXIS_SIGNED_SWELL10", "AXIS_SWELL10_CM", "FOLLOW_NOHIST_CM"]
+           "AXIS_SIGNED_SWELL10", "AXIS_SWELL10_CM", "FOLLOW_NOHIST_CM", "FOLLOW_HOLD"]
 
 SMALL_MGN = {"hidden": 32, "processor_size": 5, "max_neighbors": 12}
 _SCHEDULE = {"max_rotation": 0.0, "warmup_epochs": 2.0}
@@ -79,6 +79,9 @@ FOLLOW_STEADY = {**FOLLOW_NOHIST, "skip_frames": "dataset"}
 # clot's motion onto the vessel (with the weight alone, ClotEntry's rollout drifted sideways
 # into the wall and stalled), the weighted loss fits the clot's speed changes along it
 FOLLOW_NOHIST_CM = {**FOLLOW_NOHIST, "clot_mean_weight": 10.0}
+# it with the lateral hold: the clot-wide mean of the model's acceleration across the vessel's
+# axis (2 r) taken out of every step (rollouts drifted sideways first; rungs ``follow_hold_*``)
+FOLLOW_HOLD = {**FOLLOW_NOHIST_CM, "lateral_hold": 2.0}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -286,6 +289,15 @@ RUNGS: tuple[Rung, ...] = (
          reuse="follow_nohist_cm_last", members=3, checkpoint="last"),
     Rung("follow_nohist_cm_last_seeds3", FOLLOW_NOHIST_CM, reuse="follow_nohist_cm_last",
          members=3, checkpoint="last"),
+    # it with the lateral hold, last checkpoint, alone and guarded; seeds 0-2 as an ensemble,
+    # guarded and alone
+    Rung("follow_hold_last", FOLLOW_HOLD, checkpoint="last"),
+    Rung("follow_hold_last_guards", FOLLOW_HOLD, guards=True, reuse="follow_hold_last",
+         checkpoint="last"),
+    Rung("follow_hold_last_ens3_guards", FOLLOW_HOLD, guards=True, reuse="follow_hold_last",
+         members=3, checkpoint="last"),
+    Rung("follow_hold_last_seeds3", FOLLOW_HOLD, reuse="follow_hold_last", members=3,
+         checkpoint="last"),
     # the split with the vessel-following prior, guarded and alone
     Rung("follow", FOLLOW, guards=True),
     Rung("follow_alone", FOLLOW, reuse="follow"),

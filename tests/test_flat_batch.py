@@ -3,8 +3,8 @@
 Loss, metrics and gradients of :func:`thrombojax.train.step.batch_loss` with ``flat_batch=True``
 against the vmapped form, on a tiny MeshGraphNet (perturbed parameters, so every term matters),
 samples of different sizes and padding; with training noise, the k-step and push-forward losses,
-the vessel frame and wall features; one optimiser step of the train step; and the models that
-are not graph-local keep the vmapped form.
+the vessel frame, wall features, the vessel-following prior and the lateral hold; one optimiser
+step of the train step; and the models that are not graph-local keep the vmapped form.
 """
 
 import jax
@@ -77,8 +77,9 @@ def test_flat_equals_vmap_loss_and_gradients(options):
     _assert_same(*_setup(), **options)
 
 
-def test_flat_equals_vmap_in_the_vessel_frame_with_wall_features():
-    _assert_same(*_setup(frame="vessel", wall_cutoff=0.3), train=True, noise_std=0.01)
+def test_flat_equals_vmap_in_the_vessel_frame_with_wall_features_prior_and_lateral_hold():
+    _assert_same(*_setup(frame="vessel", wall_cutoff=0.3, prior_radius=1.0, lateral_radius=1.0),
+                 train=True, noise_std=0.01)
 
 
 def test_flat_graph_offsets_samples_and_keeps_sentinels():

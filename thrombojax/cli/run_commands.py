@@ -143,6 +143,11 @@ def _add_train(sub) -> None:
                    "node along the vessel at its current speed (axis from the wall's normals "
                    "within about this many vessel radii) and the model learns the rest "
                    "(default 0: the prior is constant velocity)")
+    p.add_argument("--lateral-hold", type=NN_FLOAT, help="take the clot-wide mean of the "
+                   "model's acceleration across the vessel's axis out of every step (axis "
+                   "from the wall's normals within about this many vessel radii), so the clot "
+                   "moves sideways only as the vessel turns and as it deforms (default 0: off)"
+                   )
     p.add_argument("--wall-signed", action="store_true", default=None, help="with "
                    "--wall-features: the features are the signed distance to the wall "
                    "(positive outside) and its outward normal, which tell a node that crossed "
@@ -173,7 +178,7 @@ def _run_train(args) -> int:
              "stop_history_gradient", "noise_shared", "wall_noise", "wall_signed",
              "history_noise", "speed_noise", "direction_noise", "swell_noise", "time_scale",
              "clot_mean_weight", "select_by",
-             "axis_features", "follow_axis")
+             "axis_features", "follow_axis", "lateral_hold")
     overrides = {k: getattr(args, k) for k in names if getattr(args, k) is not None}
     from thrombojax.train.recipes import DEFAULT_RECIPE, recipe
 

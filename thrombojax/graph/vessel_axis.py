@@ -29,7 +29,8 @@ import jax.numpy as jnp
 from thrombojax.graph.wall_nodes import local_wall_plane
 from thrombojax.types import NodeType, clot_mask
 
-__all__ = ["vessel_axis", "axis_velocity_features", "axis_speed_velocity", "follow_axis_offset"]
+__all__ = ["vessel_axis", "axis_velocity_features", "axis_speed_velocity", "follow_axis_offset",
+           "clot_lateral_mean"]
 
 
 def vessel_axis(
@@ -113,3 +114,32 @@ def follow_axis_offset(
     offset = axis_speed_velocity(v, t) - v
     defined = jnp.sum(t * t, axis=-1, keepdims=True) > 0.5
     return jnp.where(clot_mask(node_type, mask)[:, None] & defined, offset, 0.0)
+
+
+def clot_lateral_mean(
+    accel: jax.Array, x: jax.Array, node_type: jax.Array, mask: jax.Array, *, radius: float
+) -> jax.Array:
+    """``[N, 3]``: the clot-wide mean of the accelerations' parts across the vessel's axis.
+
+    ``accel - clot_lateral_mean(accel, ...)`` keeps every clot node's acceleration along its
+    local axis ``t_i`` and every difference between nodes (the clot's deformation), and takes
+    out what would push the whole clot sideways, ``mean_j (a_j - (a_j . t_j) t_j)`` over the
+    real clot nodes. A learned step with a lateral hold (``LearnedStep.lateral_radius``) moves
+    its clot across the vessel only as the vessel turns (its prior) and as the clot deforms:
+    learned rollouts fail by drifting sideways into the wall long before they lose their
+    place along the vessel (``docs/rollouts.md``).
+
+    Args:
+        accel: ``[N, 3]`` accelerations (global frame). x: ``[N, 3]`` positions, the axis's.
+        node_type: ``[N]`` NodeType. mask: ``[N]`` real nodes. radius: see :func:`vessel_axis`.
+    Returns:
+        The mean on every real clot node, zeros elsewhere and everywhere when the axis is
+        undefined (no real vessel or clot node). Linear in ``accel`` (the axis is constant).
+    """
+    t = vessel_axis(x, node_type, mask, radius=radius)
+    clot = clot_mask(node_type, mask)[:, None]
+    lateral = accel - jnp.sum(accel * t, axis=-1, keepdims=True) * t
+    count = jnp.maximum(clot.sum(), 1)
+    mean = jnp.where(clot, lateral, 0.0).sum(axis=0) / count
+    defined = jnp.sum(t * t, axis=-1, keepdims=True) > 0.5
+    return jnp.where(clot & defined, mean[None, :], 0.0)

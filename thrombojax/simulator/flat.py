@@ -136,12 +136,8 @@ class FlatStep:
         out = out.reshape(b, n, -1)
 
         def finish(o, p, c, t, m):
-            accel = stats.denormalize(o)
-            frame = step.frame_of(c, t, m)
-            if frame is not None:
-                accel = frame.vectors_to_global(accel)
-            accel = accel + step.prior(step.last_previous(p), c, t, m)
-            return integrate(p, c, accel, t, m)
+            accel, o = step.accelerate(stats, o, step.frame_of(c, t, m), p, c, t, m)
+            return integrate(p, c, accel, t, m), o
 
-        positions = jax.vmap(finish)(out, x_prev, x_cur, node_type, mask)
+        positions, out = jax.vmap(finish)(out, x_prev, x_cur, node_type, mask)
         return StepOutput(positions=positions, output=out, overflow=graph_overflow(graphs))

@@ -72,7 +72,11 @@ from thrombojax.errors import ConfigError
 from thrombojax.graph.frame import FRAMES, VesselFrame, vessel_frame
 from thrombojax.graph.grid import GridSpec
 from thrombojax.graph.neighbors import graph_overflow
-from thrombojax.graph.vessel_axis import axis_velocity_features, follow_axis_offset
+from thrombojax.graph.vessel_axis import (
+    axis_velocity_features,
+    clot_lateral_mean,
+    follow_axis_offset,
+)
 from thrombojax.graph.wall_nodes import signed_wall_features, wall_node_features
 from thrombojax.models.registry import Surrogate
 from thrombojax.types import ModelInput, TargetStats, clot_mask
@@ -183,6 +187,10 @@ class LearnedStep:
         prior_radius: > 0: the step's prior is the velocity turned onto the vessel's axis
             (:func:`thrombojax.graph.vessel_axis.follow_axis_offset`, this axis width, scaled)
             and the model learns the rest; 0: the prior is constant velocity.
+        lateral_radius: > 0: the lateral hold, the clot-wide mean of the model's acceleration
+            across the local vessel axis (this width, scaled) is taken out
+            (:func:`thrombojax.graph.vessel_axis.clot_lateral_mean`) before the prior is added;
+            ``StepOutput.output`` is then the acceleration the step applied, normalised. 0: off.
     """
 
     model: Surrogate
@@ -194,6 +202,7 @@ class LearnedStep:
     stop_history_gradient: bool = False
     axis_radius: float = 0.0
     prior_radius: float = 0.0
+    lateral_radius: float = 0.0
 
     def __post_init__(self) -> None:
         if self.frame not in FRAMES:
@@ -202,7 +211,7 @@ class LearnedStep:
         if not (self.wall_cutoff >= 0 and self.wall_cutoff < float("inf")):
             raise ConfigError(f"learned step: wall_cutoff must be a finite number >= 0, "
                               f"got {self.wall_cutoff!r}")
-        for name in ("axis_radius", "prior_radius"):
+        for name in ("axis_radius", "prior_radius", "lateral_radius"):
             if not (getattr(self, name) >= 0 and getattr(self, name) < float("inf")):
                 raise ConfigError(f"learned step: {name} must be a finite number >= 0, "
                                   f"got {getattr(self, name)!r}")
@@ -309,6 +318,19 @@ class LearnedStep:
             return 0.0
         return follow_axis_offset(x_last, x_cur, node_type, mask, radius=self.prior_radius)
 
+    def accelerate(self, stats, out, frame, x_prev, x_cur, node_type, mask):
+        """The model's output ``out`` to the global acceleration the step applies (the lateral
+        hold, then the prior added) and the output the training loss compares: ``out`` itself,
+        or with the lateral hold the held acceleration in the step's frame, normalised."""
+        accel = stats.denormalize(out)
+        if frame is not None:
+            accel = frame.vectors_to_global(accel)
+        if self.lateral_radius > 0:
+            accel = accel - clot_lateral_mean(accel, x_cur, node_type, mask,
+                                              radius=self.lateral_radius)
+            out = stats.normalize(accel if frame is None else frame.vectors(accel))
+        return accel + self.prior(self.last_previous(x_prev), x_cur, node_type, mask), out
+
     def normalized_target(
         self, stats: TargetStats, accel: jax.Array, x_ref: jax.Array, node_type: jax.Array,
         mask: jax.Array,
@@ -345,10 +367,7 @@ class LearnedStep:
         inputs = self._inputs(frame, stats, x_prev, x_cur, node_type, mask)
         graph = self.build_graph(inputs)
         out = self.model.apply(params, inputs, graph, train=train, rng=rng)
-        accel = stats.denormalize(out)
-        if frame is not None:
-            accel = frame.vectors_to_global(accel)
-        accel = accel + self.prior(self.last_previous(x_prev), x_cur, node_type, mask)
+        accel, out = self.accelerate(stats, out, frame, x_prev, x_cur, node_type, mask)
         x_next = integrate(self.last_previous(x_prev), x_cur, accel, node_type, mask)
         return StepOutput(positions=x_next, output=out, overflow=graph_overflow(graph))
 
@@ -371,16 +390,19 @@ def _init(step: LearnedStep, rng, x_prev, x_cur, node_type, mask) -> dict:
 def make_step(model: Surrogate, frame: str = "global", wall_cutoff: float = 0.0,
               grid: GridSpec | None = None, history: int = 1,
               stop_history_gradient: bool = False, wall_signed: bool = False,
-              axis_radius: float = 0.0, prior_radius: float = 0.0) -> LearnedStep:
+              axis_radius: float = 0.0, prior_radius: float = 0.0,
+              lateral_radius: float = 0.0) -> LearnedStep:
     """The learned simulator of a surrogate in ``frame``, with wall features when
     ``wall_cutoff > 0``, vessel-axis features when ``axis_radius > 0``, the vessel-following
-    prior when ``prior_radius > 0``, the cell ``grid``
+    prior when ``prior_radius > 0``, the lateral hold when ``lateral_radius > 0``, the cell
+    ``grid``
     where it pays and ``history`` previous frames (see the module docstring and
     :class:`LearnedStep`)."""
     return LearnedStep(model=model, frame=frame, wall_cutoff=float(wall_cutoff), grid=grid,
                        history=history, stop_history_gradient=bool(stop_history_gradient),
                        wall_signed=bool(wall_signed), axis_radius=float(axis_radius),
-                       prior_radius=float(prior_radius))
+                       prior_radius=float(prior_radius),
+                       lateral_radius=float(lateral_radius))
 
 
 def past_accelerations(x_prev: jax.Array, x_cur: jax.Array, mask: jax.Array,

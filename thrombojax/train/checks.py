@@ -34,6 +34,7 @@ _RULES: dict[str, tuple[str, float, bool, bool]] = {
     "wall_features": ("float", 0.0, True, False),
     "axis_features": ("float", 0.0, True, False),
     "follow_axis": ("float", 0.0, True, False),
+    "lateral_hold": ("float", 0.0, True, False),
     "noise_gamma": ("float", 0.0, True, False),
     "noise_shared": ("float", 0.0, True, False),
     "wall_noise": ("float", 0.0, True, False),
@@ -122,7 +123,8 @@ def check_dense_inputs(cfg, budget: int, where: str = "") -> None:
     (:data:`thrombojax.graph.wall_nodes.DENSE_PLANE_NODES` nodes)."""
     from thrombojax.graph.wall_nodes import DENSE_PLANE_NODES
 
-    used = [f"--{n.replace('_', '-')}" for n in ("axis_features", "follow_axis", "wall_noise")
+    used = [f"--{n.replace('_', '-')}" for n in ("axis_features", "follow_axis", "lateral_hold",
+                                                    "wall_noise")
             if getattr(cfg, n, 0.0) > 0]
     if getattr(cfg, "wall_signed", False):
         used.append("--wall-signed")

@@ -122,6 +122,10 @@ class TrainConfig:
             step moves each clot node along the vessel at its current speed
             (:func:`thrombojax.graph.vessel_axis.follow_axis_offset`) and the model learns the
             rest (the target statistics stay those of the acceleration); 0: constant velocity.
+        lateral_hold: width, in vessel radii, of the vessel axis of the step's lateral hold:
+            > 0, the clot-wide mean of the model's acceleration across the vessel's axis is
+            taken out, so the clot moves sideways only as its prior turns it and as it deforms
+            (:func:`thrombojax.graph.vessel_axis.clot_lateral_mean`); 0: off.
         history: frames before t the learned step reads (1: the velocity alone; H >= 2: also
             the H - 1 accelerations before t, :mod:`thrombojax.simulator.step`); windows grow
             by H - 1 frames.
@@ -174,6 +178,7 @@ class TrainConfig:
     wall_features: float = 0.0
     axis_features: float = 0.0
     follow_axis: float = 0.0
+    lateral_hold: float = 0.0
     wall_signed: bool = False
     history: int = 1
     stop_history_gradient: bool = False
