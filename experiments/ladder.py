@@ -79,7 +79,9 @@ run on, from the dataset's ``skip_frames``); ``axis_swell10_cm_last*`` the 10 % 
 and ``follow_nohist_cm_last*`` the prior without the history frame, each with the clot-wide
 error weighted 10x (``--clot-mean-weight``; the last checkpoint, alone and guarded;
 ``follow_nohist_cm_last_ens3_guards`` / ``follow_nohist_cm_last_seeds3`` its seeds 0-2,
-guarded and alone, each member also scored alone).
+guarded and alone, each member also scored alone); ``follow_hold_last*`` the latter with the
+lateral hold (``--lateral-hold 2``: the clot-wide mean of the model's acceleration across the
+vessel's axis taken out of every step), with the same seeds, alone and guarded.
 ``--transfer DATA`` also rolls every rung out on all simulations of another
 dataset (train on one, evaluate on the other). Every rung trains the same small MeshGraphNet
 (``--size study``: the study's, for an accelerator) for the same wall-clock budget (the epoch
