@@ -10,7 +10,8 @@ import numpy as np
 __all__ = ["Rung", "RUNGS", "COMMON", "STUDY_SIZE", "SMALL_MGN", "SIGNED", "HISTNOISE",
            "WALK", "AXIS", "AXIS_SIGNED", "FOLLOW", "FOLLOW_NOHIST",
            "FOLLOW_HISTNOISE", "FOLLOW_STEADY", "AXIS_SWELL", "AXIS_SWELL10", "AXIS_SWELL03",
-           "AXIS_SIGNED_SWELL10", "AXIS_SWELL10_CM", "FOLLOW_NOHIST_CM", "FOLLOW_HOLD"]
+           "AXIS_SIGNED_SWELL10", "AXIS_SWELL10_CM", "FOLLOW_NOHIST_CM", "FOLLOW_HOLD",
+           "FOLLOW_KSTEP", "FOLLOW_KSTEP6"]
 
 SMALL_MGN = {"hidden": 32, "processor_size": 5, "max_neighbors": 12}
 _SCHEDULE = {"max_rotation": 0.0, "warmup_epochs": 2.0}
@@ -82,6 +83,13 @@ FOLLOW_NOHIST_CM = {**FOLLOW_NOHIST, "clot_mean_weight": 10.0}
 # it with the lateral hold: the clot-wide mean of the model's acceleration across the vessel's
 # axis (2 r) taken out of every step (rollouts drifted sideways first; rungs ``follow_hold_*``)
 FOLLOW_HOLD = {**FOLLOW_NOHIST_CM, "lateral_hold": 2.0}
+# it with the k-step unrolled loss instead (the clot's drift, which a rollout integrates, is what
+# the loss sees: each step's target brings the rollout back onto the true frame): one
+# push-forward step, then 3 steps with gradients through them, k grown over 3 epochs (rungs
+# ``follow_kstep_*``); and 6 steps with gradients, no push-forward (rungs ``follow_kstep6_*``)
+FOLLOW_KSTEP = {**FOLLOW_NOHIST_CM, "pushforward_steps": 1, "rollout_steps": 3,
+                "curriculum_epochs": 3.0}
+FOLLOW_KSTEP6 = {**FOLLOW_NOHIST_CM, "rollout_steps": 6, "curriculum_epochs": 3.0}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -298,6 +306,17 @@ RUNGS: tuple[Rung, ...] = (
          members=3, checkpoint="last"),
     Rung("follow_hold_last_seeds3", FOLLOW_HOLD, reuse="follow_hold_last", members=3,
          checkpoint="last"),
+    # it with the k-step loss (3 steps after one push-forward step; 6 steps), last checkpoint,
+    # alone and guarded; seeds 0-2 as an ensemble, guarded and alone
+    *(rung for name, recipe in (("follow_kstep", FOLLOW_KSTEP), ("follow_kstep6", FOLLOW_KSTEP6))
+      for rung in (
+          Rung(f"{name}_last", recipe, checkpoint="last"),
+          Rung(f"{name}_last_guards", recipe, guards=True, reuse=f"{name}_last",
+               checkpoint="last"),
+          Rung(f"{name}_last_ens3_guards", recipe, guards=True, reuse=f"{name}_last",
+               members=3, checkpoint="last"),
+          Rung(f"{name}_last_seeds3", recipe, reuse=f"{name}_last", members=3,
+               checkpoint="last"))),
     # the split with the vessel-following prior, guarded and alone
     Rung("follow", FOLLOW, guards=True),
     Rung("follow_alone", FOLLOW, reuse="follow"),
