@@ -69,6 +69,6 @@ def past_accelerations(x_prev: jax.Array, x_cur: jax.Array, mask: jax.Array,
     the frames ``x_prev [H, n_nodes, 3]`` (oldest first) and ``x_cur``, divided by ``scale``,
     zero on padded nodes (and on the rigid vessel, whose acceleration is zero)."""
     frames = jnp.concatenate([x_prev, x_cur[None]])
-    acc = (frames[2:] - 2.0 * frames[1:-1] + frames[:-2]) / scale  # [H - 1, N, 3]
+    acc = target_acceleration(frames[:-2], frames[1:-1], frames[2:]) / scale  # [H - 1, N, 3]
     acc = jnp.where(mask[None, :, None], acc, 0.0)
     return jnp.moveaxis(acc, 0, 1).reshape(x_cur.shape[0], -1)

@@ -1,6 +1,5 @@
 set -u
-python3 -m pip install -q --no-index --no-deps --no-compile --no-cache-dir --upgrade --target /tmp/site .whl/*.whl || exit 1
-export PYTHONPATH=$PWD:/tmp/site PYTHONUNBUFFERED=1 MPLBACKEND=Agg XLA_PYTHON_CLIENT_PREALLOCATE=false JAX_COMPILATION_CACHE_DIR=/tmp/jaxcache
+. experiments/results/ladder_gpu/device_env.sh || exit 1
 START=$(date +%s); L=$OUT/logs; mkdir -p $L; D=/root/d; mkdir -p $D; cp -r .gl/ce $D/ce
 date -u; ( time python3 -m thrombojax generate clotentry --out $D/clotentry.h5 --quiet ) > $L/gen.log 2>&1; date -u
 TM=experiments/results/ladder_gpu/fifth_session/train_member.py

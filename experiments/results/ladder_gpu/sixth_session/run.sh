@@ -15,12 +15,7 @@
 # override the defaults for a smoke test on the tiny preset.
 set -u
 TM=experiments/results/ladder_gpu/fifth_session/train_member.py
-if [ -d .whl ]; then
-    python3 -m pip install -q --no-index --no-deps --no-compile --no-cache-dir --upgrade \
-        --target /tmp/site .whl/*.whl || exit 1
-fi
-export PYTHONPATH=$PWD:/tmp/site PYTHONUNBUFFERED=1 MPLBACKEND=Agg \
-    XLA_PYTHON_CLIENT_PREALLOCATE=false JAX_COMPILATION_CACHE_DIR=/tmp/jaxcache
+. experiments/results/ladder_gpu/device_env.sh || exit 1
 PRESET=${PRESET:-clotentry}; TEST=${TEST:-clotentry_008,clotentry_009}; VAL=${VAL:-clotentry_007}
 NODES=${NODES:-2048}; EPOCHS_A=${EPOCHS_A:-8}; EPOCHS_B=${EPOCHS_B:-6}
 LIMIT=${LIMIT:-480}  # seconds from the start for everything but the packing
