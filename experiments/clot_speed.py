@@ -1,0 +1,191 @@
+"""Where the true clot's speed comes from, and what rules of speed alone give over a rollout.
+
+    python experiments/clot_speed.py --dataset data/clotentry.h5 \
+        --out experiments/results/clot_speed/clotentry
+
+No model. For every simulation, the true clot centroid's speed per frame (vessel radii r per
+frame) over the rollout window (frames from the dataset's ``skip_frames`` to the last), beside
+two quantities of the geometry at the centroid: the *clearance* (distance from the centroid to
+the nearest wall node, r) and the *curvature* of the centroid's own track (turning angle per r
+of travel, smoothed over ``--smooth`` frames). Then the final error along the track of three
+rules that move the clot along its true path and only choose its speed:
+
+- **start speed**: the speed of the frame the rollout starts from, kept for every step (what a
+  step that carries its input speed over does, e.g. the vessel-following prior alone);
+- **others' mean speed**: the mean speed per frame over the rollout windows of the *other*
+  simulations (leave one out), for every step;
+- **own mean speed**: the simulation's own mean speed over its window (0 by construction; the
+  row shows the spread of the per-step speed around it instead).
+
+The error along the track is ``|rule's travel - true travel|``: the distance between the true
+final centroid and where the rule's clot stands on the true track. It is a lower bound of a
+rollout's final centroid error for the same speed, since a rollout may also leave the track.
+Writes ``table.md``, ``clot_speed.json`` (per simulation and per frame) and ``speed.png``, with
+the command, device, versions and date.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import pathlib
+import sys
+
+import numpy as np
+
+from thrombojax import study
+from thrombojax.data.radius import vessel_radius
+from thrombojax.eval.tables import environment, markdown_table
+from thrombojax.io.hdf5 import open_dataset
+from thrombojax.io.outputs import atomic_write_text, check_targets
+from thrombojax.types import NodeType, clot_mask
+
+
+def centroid_speed(positions: np.ndarray, clot: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Clot centroids ``[T, 3]`` and the speed per frame ``[T - 1]`` (|c_{t+1} - c_t|) of one
+    simulation ``positions [T, N, 3]``, in the units of ``positions``."""
+    c = positions[:, clot].astype(np.float64).mean(1)
+    return c, np.linalg.norm(np.diff(c, axis=0), axis=-1)
+
+
+def track_curvature(centroids: np.ndarray, smooth: int) -> np.ndarray:
+    """Turning angle per unit of travel of the centroid track at each frame ``[T]`` (0 at the
+    ends), from displacements summed over ``smooth`` frames on each side."""
+    t_max = len(centroids)
+    out = np.zeros(t_max)
+    for t in range(smooth, t_max - smooth):
+        a = centroids[t] - centroids[t - smooth]
+        b = centroids[t + smooth] - centroids[t]
+        na, nb = np.linalg.norm(a), np.linalg.norm(b)
+        if na > 0 and nb > 0:
+            cos = np.clip(a @ b / (na * nb), -1.0, 1.0)
+            out[t] = np.arccos(cos) / (0.5 * (na + nb))
+    return out
+
+
+def clearance(centroids: np.ndarray, wall: np.ndarray) -> np.ndarray:
+    """Distance from each centroid ``[T, 3]`` to the nearest of the wall nodes ``[W, 3]``."""
+    return np.array([np.sqrt(((wall - c) ** 2).sum(-1).min()) for c in centroids])
+
+
+def simulation_record(positions: np.ndarray, node_type: np.ndarray, skip: int, r: float,
+                      smooth: int) -> dict:
+    """The per-frame speed, clearance and curvature of one simulation over its rollout window
+    (frames ``skip - 1 .. T - 1``: the first entry is the speed the rollout starts with), in r."""
+    if positions.shape[0] < skip + 2:
+        raise ValueError(f"{positions.shape[0]} frames leave no rollout window after "
+                         f"skip_frames {skip}")
+    clot = clot_mask(node_type)
+    wall = positions[0][node_type == NodeType.VESSEL].astype(np.float64)
+    if not len(wall):
+        raise ValueError("no vessel (wall) node: clearance needs the wall")
+    c, speed = centroid_speed(positions, clot)
+    window = speed[skip - 1:] / r  # [steps + 1]: entry 0 is x_skip - x_{skip-1}
+    cur = track_curvature(c, smooth)[skip:] * r  # at the frames the steps start from
+    clear = clearance(c[skip:-1], wall) / r
+    return {"start_speed": float(window[0]), "speed": window[1:].tolist(),
+            "clearance": clear.tolist(), "curvature": cur[:-1].tolist(),
+            "travel": float(window[1:].sum()), "steps": int(len(window) - 1)}
+
+
+def _corr(x: np.ndarray, y: np.ndarray) -> float:
+    return float(np.corrcoef(x, y)[0, 1]) if np.std(x) > 0 and np.std(y) > 0 else float("nan")
+
+
+def summarise(sims: dict[str, dict]) -> tuple[list[list], dict]:
+    """Rows of the table (one per simulation) and the pooled correlations."""
+    rows = []
+    for name, s in sims.items():
+        others = [v for k, v in sims.items() if k != name]
+        mean_others = (np.mean([o["travel"] / o["steps"] for o in others]) if others
+                       else float("nan"))
+        speed = np.asarray(s["speed"])
+        rows.append([
+            name, s["steps"], s["travel"], s["start_speed"], float(speed.mean()),
+            float(speed.min()), float(speed.max()),
+            abs(s["start_speed"] * s["steps"] - s["travel"]),
+            abs(mean_others * s["steps"] - s["travel"]),
+            _corr(speed, np.asarray(s["clearance"])),
+            _corr(speed, np.asarray(s["curvature"])),
+        ])
+    pooled = {
+        "speed_vs_clearance": _corr(np.concatenate([s["speed"] for s in sims.values()]),
+                                    np.concatenate([s["clearance"] for s in sims.values()])),
+        "speed_vs_curvature": _corr(np.concatenate([s["speed"] for s in sims.values()]),
+                                    np.concatenate([s["curvature"] for s in sims.values()])),
+        "mean_speed_spread": float(np.std([s["travel"] / s["steps"] for s in sims.values()])),
+        "mean_speed_mean": float(np.mean([s["travel"] / s["steps"] for s in sims.values()])),
+    }
+    return rows, pooled
+
+
+def plot(sims: dict[str, dict], path: pathlib.Path) -> None:
+    """Speed per step of every simulation, and speed against clearance (pooled)."""
+    import matplotlib.pyplot as plt
+
+    from thrombojax.plotting.scene import save_atomic
+
+    fig, (ax0, ax1) = plt.subplots(1, 2, figsize=(11, 4))
+    for name, s in sims.items():
+        ax0.plot(np.arange(1, s["steps"] + 1), s["speed"], lw=0.8, label=name)
+        ax1.scatter(s["clearance"], s["speed"], s=3)
+    ax0.set(xlabel="rollout step", ylabel="true clot speed (r per frame)",
+            title="true clot centroid speed over the rollout window")
+    ax0.legend(fontsize=6, ncol=2)
+    ax1.set(xlabel="clearance: centroid to nearest wall node (r)",
+            ylabel="speed (r per frame)", title="speed against clearance, every step")
+    fig.tight_layout()
+    save_atomic(lambda tmp: fig.savefig(tmp, dpi=120), path)
+    plt.close(fig)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--dataset", required=True, help="HDF5 dataset")
+    parser.add_argument("--out", required=True, help="output folder (table.md, JSON, PNG)")
+    parser.add_argument("--smooth", type=int, default=3,
+                        help="frames on each side for the track's curvature (default 3)")
+    parser.add_argument("--force", action="store_true", help="replace existing outputs")
+    args = parser.parse_args(argv)
+    if args.smooth < 1:
+        parser.error("--smooth must be >= 1")
+    out = pathlib.Path(args.out)
+    targets = [out / "table.md", out / "clot_speed.json", out / "speed.png"]
+    check_targets(targets, force=args.force)
+    ds = open_dataset(args.dataset)
+    skip, r = max(study.skip_frames(ds), 1), vessel_radius(ds)
+    sims = {}
+    for name in ds.names:
+        try:
+            sims[name] = simulation_record(np.asarray(ds.positions(name)),
+                                           np.asarray(ds.node_type(name)), skip, r, args.smooth)
+        except ValueError as err:
+            raise SystemExit(f"{args.dataset}: simulation {name!r}: {err}") from None
+    rows, pooled = summarise(sims)
+    table = markdown_table(
+        ["simulation", "steps", "true travel (r)", "start speed (r/frame)",
+         "mean speed", "min speed", "max speed", "start speed kept: error along (r)",
+         "others' mean speed: error along (r)", "corr(speed, clearance)",
+         "corr(speed, curvature)"], rows)
+    env = environment()
+    out.mkdir(parents=True, exist_ok=True)
+    plot(sims, out / "speed.png")
+    atomic_write_text(out / "table.md", (
+        f"# The true clot's speed over the rollout window ({pathlib.Path(args.dataset).name}, "
+        f"{len(sims)} simulations, frames {skip}..end)\n\n{table}\n"
+        f"Pooled over every step of every simulation: corr(speed, clearance) "
+        f"{pooled['speed_vs_clearance']:.3f}, corr(speed, curvature) "
+        f"{pooled['speed_vs_curvature']:.3f}; mean speed per simulation "
+        f"{pooled['mean_speed_mean']:.4f} +- {pooled['mean_speed_spread']:.4f} r per frame.\n"
+        f"One vessel radius r is {r:.4g} in the dataset's units "
+        f"('{ds.attrs.get('units', '?')}').\n\n"
+        + "".join(f"- {k}: {v}\n" for k, v in env.items())))
+    atomic_write_text(out / "clot_speed.json", json.dumps(
+        {"environment": env, "skip_frames": skip, "radius": r, "smooth": args.smooth,
+         "pooled": pooled, "simulations": sims}, indent=1))
+    print(table)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
