@@ -167,7 +167,9 @@ def solver_batch(tmp_path_factory):
 
 @pytest.mark.parametrize("name", TRAINABLE)
 def test_overfit_a_few_solver_samples(name, solver_batch):
-    """Each tiny model drives its loss on three solver windows to <= 1 % of the start."""
+    """Each tiny model drives its loss on three solver windows to <= 1 % of the start within
+    its step budget (checked every 50 steps; measured: MeshGraphNet there by about step 250
+    of 800, Transolver 550 of 1,500, Erwin 250 of 600)."""
     batch, stats = solver_batch
     overrides, steps, lr = OVERFIT.get(name, ({}, 1000, 3e-3))
     model = create_model(name, get_config(name, tiny=True, **overrides))
@@ -178,8 +180,10 @@ def test_overfit_a_few_solver_samples(name, solver_batch):
     train_step = make_train_step(model, tx, stats)
     for i in range(steps):
         state, _ = train_step(state, batch, jax.random.PRNGKey(i))
+        if (i + 1) % 50 == 0 and float(eval_step(state.params, batch)["loss"]) <= 0.01 * start:
+            break
     end = float(eval_step(state.params, batch)["loss"])
-    assert end <= 0.01 * start, (name, start, end)
+    assert end <= 0.01 * start, (name, i + 1, start, end)
 
 
 def test_pushforward_starts_the_loss_from_the_models_own_prediction():
