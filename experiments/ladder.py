@@ -83,7 +83,8 @@ guarded and alone, each member also scored alone); ``follow_hold_last*`` the lat
 lateral hold (``--lateral-hold 2``: the clot-wide mean of the model's acceleration across the
 vessel's axis taken out of every step), with the same seeds, alone and guarded;
 ``follow_kstep_last*`` / ``follow_kstep6_last*`` it with the k-step loss instead (3 steps after
-one push-forward step; 6 steps), the same variants.
+one push-forward step; 6 steps), the same variants; ``follow_speed_last*`` it with speed noise
+0.1 and wall features (0.5 r) instead, the same variants.
 ``--transfer DATA`` also rolls every rung out on all simulations of another
 dataset (train on one, evaluate on the other). Every rung trains the same small MeshGraphNet
 (``--size study``: the study's, for an accelerator) for the same wall-clock budget (the epoch

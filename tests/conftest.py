@@ -24,3 +24,20 @@ import jax  # noqa: E402
 jax.config.update("jax_compilation_cache_dir", os.environ["JAX_COMPILATION_CACHE_DIR"])
 jax.config.update("jax_persistent_cache_min_compile_time_secs",
                   float(os.environ["JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS"]))
+
+
+def pytest_collection_modifyitems(config, items):
+    """Run the longest files first: those marked ``slow_safety`` (the kill -9 trials, one test
+    of 25-120 s each), then those marked ``slow`` (a minute or more), then the rest, each file
+    whole and in its own order. With ``-n 2 --dist loadfile --no-loadscope-reorder`` (`make
+    test`) the two workers then end on short files together; xdist's default order (most tests
+    first) left a one-test kill-trial file of about 100 s to one worker at the end."""
+    def rank(item) -> int:
+        return (0 if item.get_closest_marker("slow_safety")
+                else 1 if item.get_closest_marker("slow") else 2)
+
+    file_rank: dict[str, int] = {}
+    for item in items:
+        key = str(item.path)
+        file_rank[key] = min(file_rank.get(key, 2), rank(item))
+    items.sort(key=lambda item: file_rank[str(item.path)])  # stable: files stay whole

@@ -18,6 +18,8 @@ from thrombojax.train.schedule import make_optimizer
 from thrombojax.train.step import batch_loss, init_state, make_train_step
 from thrombojax.types import NodeType, TargetStats
 
+pytestmark = pytest.mark.slow  # a minute or more: scheduled first (tests/conftest.py)
+
 
 def _batch(n=2, seed=0):
     return window_batch([synthetic_window(seed + s, n_clot=20, n_pad=4) for s in range(n)])

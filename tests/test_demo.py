@@ -7,6 +7,10 @@ import pathlib
 import subprocess
 import sys
 
+import pytest
+
+pytestmark = pytest.mark.slow  # a minute or more: scheduled first (tests/conftest.py)
+
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 
 

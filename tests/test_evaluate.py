@@ -12,6 +12,8 @@ from PIL import Image
 from thrombojax.cli import main
 from thrombojax.types import NodeType
 
+pytestmark = pytest.mark.slow  # a minute or more: scheduled first (tests/conftest.py)
+
 
 @pytest.fixture(scope="module")
 def tiny_run(tmp_path_factory):

@@ -29,6 +29,8 @@ from thrombojax.experiments.spec import (
 from thrombojax.models.registry import get_config
 from thrombojax.train.config import TrainConfig
 
+pytestmark = pytest.mark.slow  # a minute or more: scheduled first (tests/conftest.py)
+
 EXPECTED = {"rotation_sweep", "node_count_sweep", "bary_ratio_sweep", "test_mse", "rollouts",
             "rollout_timing", "generalisation", "stability_ladder", "hyperparameter_search"}
 

@@ -15,6 +15,8 @@ from thrombojax.cli import main
 from thrombojax.experiments.data import ensure_dataset
 from thrombojax.train.config import TrainConfig, load_config_file
 
+pytestmark = pytest.mark.slow  # a minute or more: scheduled first (tests/conftest.py)
+
 
 @pytest.fixture(scope="module")
 def data_dir(tmp_path_factory):

@@ -10,6 +10,8 @@ from experiment_helpers import run_smoke, study_pm
 from thrombojax.experiments.data import ensure_dataset
 from thrombojax.experiments.spec import find_experiment
 
+pytestmark = pytest.mark.slow  # a minute or more: scheduled first (tests/conftest.py)
+
 
 @pytest.fixture(scope="module")
 def data_dir(tmp_path_factory):

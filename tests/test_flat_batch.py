@@ -23,6 +23,8 @@ from thrombojax.simulator.step import make_step
 from thrombojax.train.schedule import make_optimizer
 from thrombojax.train.step import batch_loss, init_state, make_train_step
 
+pytestmark = pytest.mark.slow  # a minute or more: scheduled first (tests/conftest.py)
+
 N_FRAMES = 5  # s_t-1 .. s_t+3: enough for k = 2 after one push-forward step
 
 

@@ -19,6 +19,8 @@ from thrombojax.simulator.rollout import rollout, rollout_jit, unroll
 from thrombojax.simulator.step import make_step
 from thrombojax.types import NodeType
 
+pytestmark = pytest.mark.slow  # a minute or more: scheduled first (tests/conftest.py)
+
 N_LARGE = AUTO_GRID_MIN_NODES  # the smallest cloud on which "auto" may choose the grid
 
 

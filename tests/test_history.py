@@ -28,6 +28,8 @@ from thrombojax.train.noise import add_training_noise
 from thrombojax.train.step import init_state, make_train_step
 from thrombojax.types import NodeType, TargetStats
 
+pytestmark = pytest.mark.slow  # a minute or more: scheduled first (tests/conftest.py)
+
 
 def _trajectory(n_frames=7, seed=0):
     """``[T, N, 3]`` frames: rollout_state's cloud with its clot nodes accelerating."""

@@ -19,6 +19,8 @@ from thrombojax.models import create_model, get_config
 from thrombojax.models.layers import MPNNEmbedding, SplitDense
 from thrombojax.models.meshgraphnet import MeshGraphNet
 
+pytestmark = pytest.mark.slow  # a minute or more: scheduled first (tests/conftest.py)
+
 N_REAL, N_PAD = 40, 8
 TOL = 1e-5
 

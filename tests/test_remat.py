@@ -20,6 +20,8 @@ from thrombojax.models import create_model, get_config
 from thrombojax.models.layers import remat_call
 from thrombojax.models.transolver import TransolverBlock
 
+pytestmark = pytest.mark.slow  # a minute or more: scheduled first (tests/conftest.py)
+
 N_REAL, N_PAD = 40, 8
 TOL = 1e-5
 

@@ -20,6 +20,8 @@ from thrombojax.train.loop import TrainingDivergedError, train
 from thrombojax.train.state import load_trained, restore_checkpoint
 from thrombojax.types import NodeType
 
+pytestmark = pytest.mark.slow  # a minute or more: scheduled first (tests/conftest.py)
+
 # 3 train simulations x 4 windows, batch 4, bary_ratio 1 -> 6 steps per epoch
 SMALL = dict(tiny=True, batch_size=4, lr=3e-3, warmup_epochs=0.5, n_val=1, n_test=1,
              nodes_per_sample=40, bary_ratio=1.0, bary_radius=0.5, max_rotation=np.pi)

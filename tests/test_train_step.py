@@ -15,6 +15,8 @@ from thrombojax.train.schedule import make_optimizer, make_schedule
 from thrombojax.train.step import batch_loss, init_state, make_eval_step, make_train_step
 from thrombojax.types import NodeType
 
+pytestmark = pytest.mark.slow  # a minute or more: scheduled first (tests/conftest.py)
+
 TRAINABLE = [name for name in MODEL_NAMES if name != "constant_velocity"]
 
 

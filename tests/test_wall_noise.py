@@ -20,6 +20,8 @@ from thrombojax.train.config import TrainConfig
 from thrombojax.train.noise import add_wall_noise
 from thrombojax.types import NodeType, TargetStats
 
+pytestmark = pytest.mark.slow  # a minute or more: scheduled first (tests/conftest.py)
+
 STD = 0.1
 
 
