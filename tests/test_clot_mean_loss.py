@@ -2,6 +2,7 @@
 fits the clot's mean motion where the plain per-node MSE, drowned in per-node noise, does not."""
 
 import dataclasses
+import functools
 
 import jax
 import jax.numpy as jnp
@@ -92,23 +93,42 @@ def _noisy(batch, rng, std):
     return dataclasses.replace(batch, frames=frames)
 
 
+_STATS = TargetStats(mean=jnp.zeros(3), std=jnp.full(3, 0.01), velocity_std=0.02)
+_MODEL = create_model("mgn", get_config("mgn", tiny=True))
+_TX = make_optimizer(1e-3)
+
+
+@functools.cache
+def _train_step(weight):
+    """One compiled train step per weight, shared by the seeds (a new closure traces again)."""
+    return make_train_step(_MODEL, _TX, _STATS, clot_mean_weight=weight, donate=False)
+
+
+@functools.cache
+def _clot_mean_error():
+    step = make_step(_MODEL)
+
+    @jax.jit
+    def error(params, frames, node_type, mask):
+        terms = jax.vmap(lambda f, t, m: window_loss_terms(step, params, _STATS, f, t, m,
+                                                           train=False, rng=None))(
+            frames, node_type, mask)
+        return terms["clot_mean_sum"].sum() / terms["count"].sum()
+
+    return error
+
+
 def _clot_mean_error_after_training(weight, seed, steps=20):
     """The clot-mean error (normalised units, clean targets) of a tiny MeshGraphNet after
     ``steps`` Adam steps on drag windows with per-node target noise ten times the drag."""
-    model = create_model("mgn", get_config("mgn", tiny=True))
     batch = _drag_batch(seed)
-    stats = TargetStats(mean=jnp.zeros(3), std=jnp.full(3, 0.01), velocity_std=0.02)
-    tx = make_optimizer(1e-3)
-    state = init_state(model, tx, jax.random.PRNGKey(seed), batch)
-    train_step = make_train_step(model, tx, stats, clot_mean_weight=weight, donate=False)
+    state = init_state(_MODEL, _TX, jax.random.PRNGKey(seed), batch)
+    train_step = _train_step(weight)
     rng = np.random.default_rng(seed)
     for i in range(steps):  # fresh noise every step
         state, _ = train_step(state, _noisy(batch, rng, 0.1), jax.random.PRNGKey(i))
-    step = make_step(model)
-    terms = jax.vmap(lambda f, t, m: window_loss_terms(step, state.params, stats, f, t, m,
-                                                       train=False, rng=None))(
-        jnp.asarray(batch.frames), jnp.asarray(batch.node_type), jnp.asarray(batch.mask))
-    return float(terms["clot_mean_sum"].sum() / terms["count"].sum())
+    return float(_clot_mean_error()(state.params, jnp.asarray(batch.frames),
+                                    jnp.asarray(batch.node_type), jnp.asarray(batch.mask)))
 
 
 def test_weighting_the_clot_mean_fits_the_clot_motion_under_per_node_noise():
