@@ -7,15 +7,13 @@ No model. For every simulation, the true clot centroid's speed per frame (vessel
 frame) over the rollout window (frames from the dataset's ``skip_frames`` to the last), beside
 two quantities of the geometry at the centroid: the *clearance* (distance from the centroid to
 the nearest wall node, r) and the *curvature* of the centroid's own track (turning angle per r
-of travel, smoothed over ``--smooth`` frames). Then the final error along the track of three
+of travel, smoothed over ``--smooth`` frames). Then the final error along the track of two
 rules that move the clot along its true path and only choose its speed:
 
 - **start speed**: the speed of the frame the rollout starts from, kept for every step (what a
   step that carries its input speed over does, e.g. the vessel-following prior alone);
 - **others' mean speed**: the mean speed per frame over the rollout windows of the *other*
-  simulations (leave one out), for every step;
-- **own mean speed**: the simulation's own mean speed over its window (0 by construction; the
-  row shows the spread of the per-step speed around it instead).
+  simulations (leave one out), for every step.
 
 The error along the track is ``|rule's travel - true travel|``: the distance between the true
 final centroid and where the rule's clot stands on the true track. It is a lower bound of a
