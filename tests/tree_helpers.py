@@ -14,9 +14,9 @@ def perturbed(params, seed=5):
     leaf shape (about 12 s for Erwin's tree), jitted over the tree one large program."""
     leaves, tree = jax.tree_util.tree_flatten(params)
     rng = np.random.default_rng(seed)
+    host = [np.asarray(a) for a in leaves]
     return jax.tree_util.tree_unflatten(tree, [
-        jnp.asarray(a + 0.1 * rng.standard_normal(np.shape(a)).astype(np.asarray(a).dtype))
-        for a in leaves
+        jnp.asarray(a + (0.1 * rng.standard_normal(a.shape)).astype(a.dtype)) for a in host
     ])
 
 
