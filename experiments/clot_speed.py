@@ -33,6 +33,7 @@ import numpy as np
 
 from thrombojax import study
 from thrombojax.data.radius import vessel_radius
+from thrombojax.eval.metrics import clot_centroids
 from thrombojax.eval.tables import environment, markdown_table
 from thrombojax.io.hdf5 import open_dataset
 from thrombojax.io.outputs import atomic_write_text, check_targets
@@ -40,24 +41,24 @@ from thrombojax.types import NodeType, clot_mask
 
 
 def centroid_speed(positions: np.ndarray, clot: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Clot centroids ``[T, 3]`` and the speed per frame ``[T - 1]`` (|c_{t+1} - c_t|) of one
-    simulation ``positions [T, N, 3]``, in the units of ``positions``."""
-    c = positions[:, clot].astype(np.float64).mean(1)
+    """Clot centroids ``[T, 3]`` (:func:`thrombojax.eval.metrics.clot_centroids`) and the speed
+    per frame ``[T - 1]`` (|c_{t+1} - c_t|) of one simulation ``positions [T, N, 3]``."""
+    c = clot_centroids(positions, clot)
     return c, np.linalg.norm(np.diff(c, axis=0), axis=-1)
 
 
 def track_curvature(centroids: np.ndarray, smooth: int) -> np.ndarray:
     """Turning angle per unit of travel of the centroid track at each frame ``[T]`` (0 at the
     ends), from displacements summed over ``smooth`` frames on each side."""
-    t_max = len(centroids)
-    out = np.zeros(t_max)
-    for t in range(smooth, t_max - smooth):
-        a = centroids[t] - centroids[t - smooth]
-        b = centroids[t + smooth] - centroids[t]
-        na, nb = np.linalg.norm(a), np.linalg.norm(b)
-        if na > 0 and nb > 0:
-            cos = np.clip(a @ b / (na * nb), -1.0, 1.0)
-            out[t] = np.arccos(cos) / (0.5 * (na + nb))
+    out = np.zeros(len(centroids))
+    if len(centroids) <= 2 * smooth:
+        return out
+    a = centroids[smooth:-smooth] - centroids[:-2 * smooth]
+    b = centroids[2 * smooth:] - centroids[smooth:-smooth]
+    na, nb = np.linalg.norm(a, axis=-1), np.linalg.norm(b, axis=-1)
+    ok = (na > 0) & (nb > 0)
+    cos = np.clip((a * b).sum(-1) / np.where(ok, na * nb, 1.0), -1.0, 1.0)
+    out[smooth:-smooth] = np.where(ok, np.arccos(cos) / np.where(ok, 0.5 * (na + nb), 1.0), 0.0)
     return out
 
 
