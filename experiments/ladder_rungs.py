@@ -323,6 +323,10 @@ RUNGS: tuple[Rung, ...] = (
                members=3, checkpoint="last"),
           Rung(f"{name}_last_seeds3", recipe, reuse=f"{name}_last", members=3,
                checkpoint="last"))),
+    # the speed-noise recipe's seeds 0-5 as an ensemble, guarded (each member also scored
+    # alone, guarded: the spread of six seeds)
+    Rung("follow_speed_last_ens6_guards", FOLLOW_SPEED, guards=True, reuse="follow_speed_last",
+         members=6, checkpoint="last"),
     # the split with the vessel-following prior, guarded and alone
     Rung("follow", FOLLOW, guards=True),
     Rung("follow_alone", FOLLOW, reuse="follow"),
