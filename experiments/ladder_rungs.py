@@ -327,6 +327,12 @@ RUNGS: tuple[Rung, ...] = (
     # alone, guarded: the spread of six seeds)
     Rung("follow_speed_last_ens6_guards", FOLLOW_SPEED, guards=True, reuse="follow_speed_last",
          members=6, checkpoint="last"),
+    # the same six as a committee (every step their mean, guarded, fed back to all), guarded
+    # and alone
+    Rung("follow_speed_last_committee6_guards", FOLLOW_SPEED, guards=True,
+         reuse="follow_speed_last", members=6, checkpoint="last", committee=True),
+    Rung("follow_speed_last_committee6", FOLLOW_SPEED, reuse="follow_speed_last", members=6,
+         checkpoint="last", committee=True),
     # the split with the vessel-following prior, guarded and alone
     Rung("follow", FOLLOW, guards=True),
     Rung("follow_alone", FOLLOW, reuse="follow"),
