@@ -171,10 +171,15 @@ def members_alone(runs: list[pathlib.Path], data: str, guards: bool,
     """Each member of an ensemble evaluated alone: how much one recipe varies with its seed."""
     out = []
     for run in runs:
-        mean = evaluate_runs([run], data, guards, n_nodes, which=which)["mean"]
+        res = evaluate_runs([run], data, guards, n_nodes, which=which)
+        mean = res["mean"]
         seed = json.loads((run / "config.json").read_text())["train"]["seed"]
+        # the final error along the true track per simulation, signed (+: ahead of the true
+        # clot): whether the members share the ensemble's bias or scatter about it
+        along = {name: sim["final_along_r"] for name, sim in res.get("simulations", {}).items()
+                 if "final_along_r" in sim}
         out.append({"seed": seed, "mse_full_ratio": mean["mse_full"] / mean["mse_full_cv"],
                     "final_centroid_r": mean["final_centroid_r"],
                     "mse1_phase_ratio": mean["mse1_phase"] / mean["mse1_phase_cv"],
-                    "max_outside": mean["max_outside"]})
+                    "max_outside": mean["max_outside"], "final_along_r": along})
     return out

@@ -108,7 +108,8 @@ def test_members_alone_reports_every_seed(tmp_path, monkeypatch):
         asked.append(which)
         x = ratios[str(run)]
         return {"mean": {"mse_full": x, "mse_full_cv": 1.0, "final_centroid_r": 10 * x,
-                         "mse1_phase": 0.5, "mse1_phase_cv": 1.0, "max_outside": 0.0}}
+                         "mse1_phase": 0.5, "mse1_phase_cv": 1.0, "max_outside": 0.0},
+                "simulations": {"sim_a": {"final_along_r": x - 1.0}, "sim_b": {}}}
 
     measure = sys.modules["ladder_eval"]  # imported by the ladder script
     monkeypatch.setattr(measure, "evaluate_runs", fake_evaluate)
@@ -117,9 +118,15 @@ def test_members_alone_reports_every_seed(tmp_path, monkeypatch):
     measure.members_alone([r for r, _ in runs], "d.h5", True, None, "last")
     assert asked[2:] == ["last", "last"]  # a rung's checkpoint="last" reaches every member
     assert [m["mse_full_ratio"] for m in alone] == [0.5, 3.0]
+    # the signed final error along the vessel per simulation, where the evaluation has it
+    assert [m["final_along_r"] for m in alone] == [{"sim_a": -0.5}, {"sim_a": 2.0}]
     report = sys.modules["ladder_report"]  # imported by the ladder script
     line = report.seed_lines({"ens": {"members_alone": alone}, "single": {}})
     assert "ens" in line and "0.50 / 3.00" in line and "5.00 / 30.00 r" in line
+    assert "along the vessel on sim_a (+: ahead) -0.50 / +2.00 r" in line
+    assert "sim_b" not in line
+    older = [{k: v for k, v in m.items() if k != "final_along_r"} for m in alone]
+    assert "along" not in report.seed_lines({"ens": {"members_alone": older}})  # older records
     assert "single" not in line and line.count("\n") == 1
 
 
