@@ -85,17 +85,15 @@ def bench_inputs(n_nodes: int, *, size: str = "small", repeats: int = 10) -> lis
     for label, kwargs in STEPS:
         step = make_step(model, **kwargs)
         params = step.init(jax.random.key(0), *state)
-        lowered = jax.jit(lambda p, a, b, s=step: s(p, stats, a, b, node_type, mask).positions)
-        ms = _median_ms(lowered, params, *state[:2], repeats=repeats)
-        rows.append({"what": f"step {label}", "nodes": n_nodes, "ms": round(ms, 1)})
-        if label == "plain":
-            graph_in = step.inputs(stats, *state)
-            graph = jax.jit(step.build_graph)(graph_in)
-            model_ms = _median_ms(jax.jit(model.apply), params, graph_in, graph,
-                                  repeats=repeats)
-    plain = rows[0]["ms"]
-    for row in rows:
-        row["ratio"] = round(row["ms"] / plain, 2)
+        call = jax.jit(lambda p, a, b, s=step: s(p, stats, a, b, node_type, mask).positions)
+        ms = round(_median_ms(call, params, *state[:2], repeats=repeats), 1)
+        rows.append({"what": f"step {label}", "nodes": n_nodes, "ms": ms,
+                     "ratio": round(ms / (rows[0]["ms"] if rows else ms), 2)})
+    plain = make_step(model)  # the model alone, on the plain step's input and graph
+    model_in = plain.inputs(stats, *state)
+    graph = jax.jit(plain.build_graph)(model_in)
+    params = plain.init(jax.random.key(0), *state)
+    model_ms = _median_ms(jax.jit(model.apply), params, model_in, graph, repeats=repeats)
     parts = (
         ("model", None),
         ("wall_node_features", lambda x: wall_node_features(x, node_type, mask,

@@ -77,11 +77,10 @@ def seed_lines(results: dict) -> str:
             return " / ".join(f"{m[key]:{fmt}}" for m in alone)
 
         seeds = ", ".join(str(m["seed"]) for m in alone)
-        sims = sorted(set().union(*(m.get("final_along_r", {}) for m in alone)))
-        along = "".join(
-            f"; final error along the vessel on {sim} (+: ahead) "
-            + " / ".join(f"{m['final_along_r'][sim]:+.2f}" if sim in m.get("final_along_r", {})
-                         else "-" for m in alone) + " r" for sim in sims)
+        signed = [m.get("final_along_r", {}) for m in alone]  # absent in older records
+        along = "".join(f"; final error along the vessel on {sim} (+: ahead) "
+                        + " / ".join(f"{a[sim]:+.2f}" if sim in a else "-" for a in signed)
+                        + " r" for sim in sorted(set().union(*signed)))
         lines.append(f"- {name}, each member alone (seeds {seeds}): MSE@full / CV "
                      f"{join('mse_full_ratio')}; final centroid error {join('final_centroid_r')} "
                      f"r; 1-step MSE / CV (rollout phase) {join('mse1_phase_ratio')}{along}\n")
