@@ -9,10 +9,16 @@ thousand nodes they can cost more than the model. This script times, per node co
 * the learned step (:func:`thrombojax.simulator.step.make_step`: inputs, graph, model,
   integration; one jitted call) with the inputs added one at a time: ``plain``, ``+ wall``,
   ``+ axis``, ``+ prior`` (the last is the input set of the ClotEntry recipes
-  ``follow_*`` of ``experiments/ladder_rungs.py``), and its ratio to ``plain``;
+  ``follow_*`` of ``experiments/ladder_rungs.py``), and its ratio to ``plain``; and the last
+  as a rollout runs it, given the :class:`~thrombojax.simulator.step.StepContext` made once
+  (``, rollout context``: the rigid vessel's wall search not repeated); and that step in a
+  compiled rollout of :data:`ROLLOUT_STEPS` steps, per step, with the context (as
+  :func:`thrombojax.simulator.rollout.rollout_jit` runs it) and with every step searching its
+  own frame (how rollouts ran before the context);
 * each input function alone (one jitted call): ``wall_node_features``, ``vessel_axis``, and
   ``local_wall_plane`` (the wall normals ``vessel_axis`` starts from; its ``N x N`` nearest-node
-  search), and the model on a precomputed graph (``model``).
+  search), ``vessel_axis`` given the context, and the model on a precomputed graph
+  (``model``).
 
 Times are medians of ``--repeats`` calls after compilation (``block_until_ready``). The model is
 the stability ladder's small MeshGraphNet (hidden 32, 5 blocks, 12 neighbours; ``--size study``:
@@ -47,9 +53,10 @@ from thrombojax.graph.wall_nodes import local_wall_plane, wall_node_features  # 
 from thrombojax.io.outputs import atomic_write_text  # noqa: E402
 from thrombojax.models import create_model, get_config  # noqa: E402
 from thrombojax.models.registry import identity_stats  # noqa: E402
+from thrombojax.simulator.rollout import rollout_jit  # noqa: E402
 from thrombojax.simulator.step import make_step  # noqa: E402
 
-__all__ = ["RADIUS", "STEPS", "bench_inputs", "main"]
+__all__ = ["RADIUS", "STEPS", "ROLLOUT_STEPS", "bench_inputs", "main"]
 
 RADIUS = 0.5
 """The synthetic tube's radius (scaled coordinates): one vessel radius, r."""
@@ -65,6 +72,23 @@ STEPS: tuple[tuple[str, dict], ...] = (
 
 SMALL = {"hidden": 32, "processor_size": 5, "mlp_layers": 2, "max_neighbors": 12}
 """The stability ladder's small MeshGraphNet (``experiments/ladder_rungs.py``)."""
+
+
+ROLLOUT_STEPS = 20
+"""Steps of the timed rollouts (their rows give milliseconds per step)."""
+
+
+def _rollout_with_context(step, params, stats, x_prev, x_cur, node_type, mask):
+    return rollout_jit(step, params, stats, x_prev, x_cur, node_type, mask, ROLLOUT_STEPS)[0]
+
+
+def _rollout_without_context(step, params, stats, x_prev, x_cur, node_type, mask):
+    def body(carry, _):
+        prev, cur = carry
+        nxt = step(params, stats, prev, cur, node_type, mask).positions
+        return (cur, nxt), nxt
+
+    return jax.lax.scan(body, (x_prev, x_cur), None, length=ROLLOUT_STEPS)[1]
 
 
 def bench_inputs(n_nodes: int, *, size: str = "small", repeats: int = 10) -> list[dict]:
@@ -89,6 +113,23 @@ def bench_inputs(n_nodes: int, *, size: str = "small", repeats: int = 10) -> lis
         ms = round(_median_ms(call, params, *state[:2], repeats=repeats), 1)
         rows.append({"what": f"step {label}", "nodes": n_nodes, "ms": ms,
                      "ratio": round(ms / (rows[0]["ms"] if rows else ms), 2)})
+    # the last step as a rollout runs it: the vessel's wall search made once (StepContext)
+    context = jax.jit(step.context)(x_cur, node_type, mask)
+    call = jax.jit(lambda p, a, b, c, s=step: s(p, stats, a, b, node_type, mask,
+                                                  context=c).positions)
+    ms = round(_median_ms(call, params, *state[:2], context, repeats=repeats), 1)
+    rows.append({"what": f"step {STEPS[-1][0]}, rollout context", "nodes": n_nodes, "ms": ms,
+                 "ratio": round(ms / rows[0]["ms"], 2)})
+    # and in a rollout of ROLLOUT_STEPS steps, per step: the compiled rollout (context made
+    # once) against the same scan with each step searching its own frame (before the context)
+    plain_ms = rows[0]["ms"]
+    for label, fn in (("search every step", _rollout_without_context),
+                      ("rollout context", _rollout_with_context)):
+        call = jax.jit(lambda p, a, b, s=step, f=fn: f(s, p, stats, a, b, node_type, mask))
+        ms = round(_median_ms(call, params, *state[:2], repeats=max(1, repeats // 4))
+                   / ROLLOUT_STEPS, 1)
+        rows.append({"what": f"rollout {STEPS[-1][0]}, {label}", "nodes": n_nodes, "ms": ms,
+                     "ratio": round(ms / plain_ms, 2)})
     plain = make_step(model)  # the model alone, on the plain step's input and graph
     model_in = plain.inputs(stats, *state)
     graph = jax.jit(plain.build_graph)(model_in)
@@ -100,6 +141,8 @@ def bench_inputs(n_nodes: int, *, size: str = "small", repeats: int = 10) -> lis
                                                             cutoff=0.5 * RADIUS)),
         ("local_wall_plane", lambda x: local_wall_plane(x, node_type, mask)),
         ("vessel_axis", lambda x: vessel_axis(x, node_type, mask, radius=2 * RADIUS)),
+        ("vessel_axis, rollout context", lambda x: vessel_axis(
+            x, node_type, mask, radius=2 * RADIUS, patch=context.global_patch)),
     )
     for label, fn in parts:
         ms = model_ms if fn is None else _median_ms(jax.jit(fn), x_cur, repeats=repeats)
@@ -114,8 +157,10 @@ def _markdown(rows: list[dict], env: dict, size: str) -> str:
     for r in rows:
         lines.append(f"| {r['what']} | {r['nodes']} | {r['ms']} | {r.get('ratio', '-')} |")
     lines += ["", "Steps: inputs added one at a time (wall cutoff 0.5 r; axis features and prior "
-              "width 2 r); the other rows are each part alone, one jitted call. Medians after "
-              "compilation.", ""]
+              "width 2 r); 'rollout context': the last step given the vessel's wall search made "
+              "once, as every rollout runs it; 'rollout' rows: ms per step of a "
+              f"{ROLLOUT_STEPS}-step compiled rollout of that step. The other rows are each "
+              "part alone, one jitted call. Medians after compilation.", ""]
     lines += [f"- {k}: {v}" for k, v in env.items()]
     return "\n".join(lines) + "\n"
 

@@ -22,8 +22,11 @@ def test_tiny_run_times_every_step_and_part_and_refuses_to_overwrite(tmp_path):
     got = json.loads(out.read_text())
     rows = {r["what"]: r for r in got["rows"]}
     steps = [f"step {label}" for label, _ in step_inputs.STEPS]
-    assert set(rows) == {*steps, "model", "wall_node_features", "local_wall_plane",
-                         "vessel_axis"}
+    assert set(rows) == {*steps, "step + prior, rollout context",
+                         "rollout + prior, search every step", "rollout + prior, rollout context",
+                         "model",
+                         "wall_node_features", "local_wall_plane", "vessel_axis",
+                         "vessel_axis, rollout context"}
     assert all(r["nodes"] == 64 and r["ms"] > 0 for r in rows.values())
     assert rows["step plain"]["ratio"] == 1.0
     assert rows["step + prior"]["ratio"] == round(

@@ -26,7 +26,7 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
-from thrombojax.graph.wall_nodes import local_wall_plane
+from thrombojax.graph.wall_nodes import local_wall_plane, pairwise_sq_distances, vessel_normals
 from thrombojax.types import NodeType, clot_mask
 
 __all__ = ["vessel_axis", "axis_velocity_features", "axis_speed_velocity", "follow_axis_offset",
@@ -34,7 +34,8 @@ __all__ = ["vessel_axis", "axis_velocity_features", "axis_speed_velocity", "foll
 
 
 def vessel_axis(
-    x: jax.Array, node_type: jax.Array, mask: jax.Array, *, radius: float
+    x: jax.Array, node_type: jax.Array, mask: jax.Array, *, radius: float,
+    patch: jax.Array | None = None,
 ) -> jax.Array:
     """Unit local vessel axis at every node (sign arbitrary). Jittable.
 
@@ -43,6 +44,10 @@ def vessel_axis(
         mask: ``[N]`` real nodes.
         radius: ``rho``, the width of the Gaussian weights over vessel nodes (> 0, units of
             ``x``); about two vessel radii takes in the wall all round a clot node.
+        patch: the vessel's wall search made before
+            (:func:`~thrombojax.graph.wall_nodes.wall_patches` of a frame with the same vessel
+            nodes, e.g. a rollout's first): the same axis without the ``N x N`` search
+            (:func:`~thrombojax.graph.wall_nodes.vessel_normals`). None: search ``x``.
     Returns:
         ``[N, 3]`` unit vectors; zeros on every node when there is no real vessel node or no
         real clot node (:func:`~thrombojax.graph.wall_nodes.local_wall_plane` gives no normals).
@@ -52,9 +57,11 @@ def vessel_axis(
     x = jax.lax.stop_gradient(x)
     mask = jnp.asarray(mask, bool)
     vessel = mask & (jnp.asarray(node_type) == NodeType.VESSEL)
-    _, normal = local_wall_plane(x, node_type, mask)
-    d2 = jnp.sum((x[:, None, :] - x[None, :, :]) ** 2, axis=-1)
-    w = jnp.where(vessel[None, :], jnp.exp(-d2 / radius**2), 0.0)  # [N, N]
+    if patch is None:
+        _, normal = local_wall_plane(x, node_type, mask)
+    else:  # only the vessel rows of the normals are read below
+        normal = vessel_normals(x, node_type, mask, patch)
+    w = jnp.where(vessel[None, :], jnp.exp(-pairwise_sq_distances(x) / radius**2), 0.0)  # [N, N]
     m = jnp.einsum("nj,ja,jb->nab", w, normal, normal)
     _, vecs = jnp.linalg.eigh(m)
     axis = vecs[:, :, 0]  # the direction of least normal: along the vessel
@@ -64,7 +71,7 @@ def vessel_axis(
 
 def axis_velocity_features(
     x_prev: jax.Array, x_cur: jax.Array, node_type: jax.Array, mask: jax.Array, *,
-    radius: float, velocity_scale: jax.Array | float = 1.0,
+    radius: float, velocity_scale: jax.Array | float = 1.0, patch: jax.Array | None = None,
 ) -> jax.Array:
     """``[N, 6]``: the velocity along the local vessel axis and across it, on clot nodes.
 
@@ -72,11 +79,12 @@ def axis_velocity_features(
         x_prev, x_cur: ``[N, 3]`` positions s_{t-1}, s_t. node_type: ``[N]`` NodeType.
         mask: ``[N]`` real nodes. radius: see :func:`vessel_axis`.
         velocity_scale: both parts are divided by it (the step's velocity normalisation).
+        patch: a wall search made before (:func:`vessel_axis`); None: search ``x_cur``.
     Returns:
         ``[(v . t) t, v - (v . t) t] / velocity_scale`` on real clot nodes, zeros elsewhere
         (``v = x_cur - x_prev``, ``t`` = :func:`vessel_axis` of ``x_cur``).
     """
-    t = vessel_axis(x_cur, node_type, mask, radius=radius)
+    t = vessel_axis(x_cur, node_type, mask, radius=radius, patch=patch)
     v = (x_cur - x_prev) / velocity_scale
     along = jnp.sum(v * t, axis=-1, keepdims=True) * t
     feats = jnp.concatenate([along, v - along], axis=-1)
@@ -94,7 +102,7 @@ def axis_speed_velocity(v: jax.Array, t: jax.Array) -> jax.Array:
 
 def follow_axis_offset(
     x_prev: jax.Array, x_cur: jax.Array, node_type: jax.Array, mask: jax.Array, *,
-    radius: float,
+    radius: float, patch: jax.Array | None = None,
 ) -> jax.Array:
     """``[N, 3]``: what turns each clot node's velocity onto the vessel's axis, keeping its speed.
 
@@ -107,9 +115,9 @@ def follow_axis_offset(
 
     Args:
         x_prev, x_cur: ``[N, 3]`` positions s_{t-1}, s_t. node_type: ``[N]`` NodeType.
-        mask: ``[N]`` real nodes. radius: see :func:`vessel_axis`.
+        mask: ``[N]`` real nodes. radius, patch: see :func:`vessel_axis`.
     """
-    t = vessel_axis(x_cur, node_type, mask, radius=radius)
+    t = vessel_axis(x_cur, node_type, mask, radius=radius, patch=patch)
     v = x_cur - x_prev
     offset = axis_speed_velocity(v, t) - v
     defined = jnp.sum(t * t, axis=-1, keepdims=True) > 0.5
@@ -117,7 +125,8 @@ def follow_axis_offset(
 
 
 def clot_lateral_mean(
-    accel: jax.Array, x: jax.Array, node_type: jax.Array, mask: jax.Array, *, radius: float
+    accel: jax.Array, x: jax.Array, node_type: jax.Array, mask: jax.Array, *, radius: float,
+    patch: jax.Array | None = None,
 ) -> jax.Array:
     """``[N, 3]``: the clot-wide mean of the accelerations' parts across the vessel's axis.
 
@@ -131,12 +140,13 @@ def clot_lateral_mean(
 
     Args:
         accel: ``[N, 3]`` accelerations (global frame). x: ``[N, 3]`` positions, the axis's.
-        node_type: ``[N]`` NodeType. mask: ``[N]`` real nodes. radius: see :func:`vessel_axis`.
+        node_type: ``[N]`` NodeType. mask: ``[N]`` real nodes. radius, patch: see
+            :func:`vessel_axis`.
     Returns:
         The mean on every real clot node, zeros elsewhere and everywhere when the axis is
         undefined (no real vessel or clot node). Linear in ``accel`` (the axis is constant).
     """
-    t = vessel_axis(x, node_type, mask, radius=radius)
+    t = vessel_axis(x, node_type, mask, radius=radius, patch=patch)
     clot = clot_mask(node_type, mask)[:, None]
     lateral = accel - jnp.sum(accel * t, axis=-1, keepdims=True) * t
     count = jnp.maximum(clot.sum(), 1)

@@ -24,7 +24,7 @@ from thrombojax.types import NodeType, clot_mask
 __all__ = ["WALL_NODE_FEATURES", "WALL_NORMAL_NODES", "WALL_PLANE_NODES", "DENSE_PLANE_NODES",
            "clipped_distance_direction",
            "nearest_vessel_node", "wall_node_features", "local_wall_plane",
-           "signed_wall_features"]
+           "signed_wall_features", "wall_patches", "vessel_normals", "pairwise_sq_distances"]
 
 WALL_NODE_FEATURES: int = 4
 """Width of :func:`wall_node_features`: clipped distance / cutoff and a 3-D direction."""
@@ -37,6 +37,15 @@ WALL_PLANE_NODES: int = 3
 
 DENSE_PLANE_NODES: int = 8192
 """Most nodes :func:`local_wall_plane` takes (its ``N x N`` search: 800 MB at this size)."""
+
+
+def pairwise_sq_distances(x: jax.Array) -> jax.Array:
+    """``[N, N]`` squared distances between the points ``x [N, 3]``, one coordinate at a time.
+
+    The same values as ``sum((x[:, None] - x[None]) ** 2, -1)`` up to rounding, but XLA's CPU
+    code vectorises ``[N, N]`` planes and not a reduction over a minor axis of 3: 1.9 ms
+    against 51 ms at 2,048 nodes (``docs/performance.md``)."""
+    return sum((x[:, a][:, None] - x[:, a][None, :]) ** 2 for a in range(3))
 
 
 def clipped_distance_direction(diff: jax.Array, cutoff: float) -> jax.Array:
@@ -101,6 +110,64 @@ def wall_node_features(
     return jnp.where(keep[:, None], feats, 0.0)
 
 
+def wall_patches(
+    x: jax.Array, node_type: jax.Array, mask: jax.Array, *, k_normal: int = WALL_NORMAL_NODES
+) -> jax.Array:
+    """``[N, k_normal]`` int32: every node's ``k_normal`` nearest real vessel nodes, nearest
+    first (the dense ``N x N`` search of :func:`local_wall_plane`). Jittable.
+
+    A vessel node's row depends on the vessel's nodes alone, so in a rollout (the vessel is
+    rigid) the rows of the vessel nodes are the same at every step: a search made once per
+    rollout serves every step's vessel normals (:func:`vessel_normals`, the learned step's
+    :meth:`~thrombojax.simulator.step.LearnedStep.context`). The rows of other nodes are those
+    of the frame searched.
+
+    Args:
+        x: ``[N, 3]`` positions (gradients are stopped). node_type: ``[N]`` NodeType.
+        mask: ``[N]`` real nodes. k_normal: nodes per row (>= 3; at most ``N``).
+    """
+    _check_plane(x.shape[0], k_normal, WALL_PLANE_NODES)
+    x = jax.lax.stop_gradient(x)
+    vessel = jnp.asarray(mask, bool) & (jnp.asarray(node_type) == NodeType.VESSEL)
+    ranked = jnp.where(vessel[None, :], -pairwise_sq_distances(x), -jnp.inf)
+    return jax.lax.top_k(ranked, min(k_normal, x.shape[0]))[1]
+
+
+def _check_plane(n: int, k_normal: int, k_avg: int) -> None:
+    if n > DENSE_PLANE_NODES:
+        raise ValueError(f"local wall plane: {n} nodes; its dense search is meant for "
+                         f"at most {DENSE_PLANE_NODES} (signed wall features, vessel-axis "
+                         "features and wall noise are for training-size clouds: subsample, "
+                         "e.g. --nodes-per-sample in training, --nodes in a rollout)")
+    if k_normal < 3 or k_avg < 1:
+        raise ValueError(f"local wall plane: need k_normal >= 3 and k_avg >= 1, got "
+                         f"{k_normal!r}, {k_avg!r}")
+
+
+def _oriented_normals(x, node_type, mask, patch):
+    """Unit normals of every row's patch (least spread), turned away from the clot centroid;
+    ``patch`` from :func:`wall_patches` of a frame with the same vessel."""
+    clot = clot_mask(node_type, mask)
+    pts = x[patch]
+    dev = pts - pts.mean(axis=1, keepdims=True)
+    _, vecs = jnp.linalg.eigh(jnp.einsum("nki,nkj->nij", dev, dev))
+    normals = vecs[:, :, 0]  # least spread: the normal of the node's own patch (vessel nodes)
+    clot_centre = jnp.sum(jnp.where(clot[:, None], x, 0.0), axis=0) / jnp.maximum(clot.sum(), 1)
+    return jnp.where((jnp.sum((x - clot_centre) * normals, axis=-1) < 0)[:, None],
+                     -normals, normals)
+
+
+def _plane_ok(node_type, mask, k_normal: int) -> jax.Array:
+    mask = jnp.asarray(mask, bool)
+    vessel = mask & (jnp.asarray(node_type) == NodeType.VESSEL)
+    return (jnp.sum(vessel) >= k_normal) & jnp.any(clot_mask(node_type, mask))
+
+
+def _averaged_normal(normals, near):
+    normal = normals[near].mean(axis=1)
+    return normal / jnp.maximum(jnp.linalg.norm(normal, axis=-1, keepdims=True), 1e-12)
+
+
 def local_wall_plane(
     x: jax.Array,
     node_type: jax.Array,
@@ -119,7 +186,8 @@ def local_wall_plane(
     distance is the mean of ``(x - w) . n_w`` over its ``k_avg`` nearest vessel nodes ``w``
     (positive outside) and its normal the normalised mean of their normals. Open vessel ends
     are not detected: a node past an outlet reads as inside or outside its rim's planes. The
-    search is dense (``N x N`` distances): meant for training windows, not 27,000-node frames.
+    search is dense (``N x N`` distances, :func:`wall_patches`): meant for training windows,
+    not 27,000-node frames.
 
     Args:
         x: ``[N, 3]`` positions (gradients are stopped). node_type: ``[N]`` NodeType.
@@ -129,37 +197,44 @@ def local_wall_plane(
         ``(signed [N], normal [N, 3])``; zeros on every node when there are fewer than
         ``k_normal`` real vessel nodes or no real clot node.
     """
-    if x.shape[0] > DENSE_PLANE_NODES:
-        raise ValueError(f"local wall plane: {x.shape[0]} nodes; its dense search is meant for "
-                         f"at most {DENSE_PLANE_NODES} (signed wall features, vessel-axis "
-                         "features and wall noise are for training-size clouds: subsample, "
-                         "e.g. --nodes-per-sample in training, --nodes in a rollout)")
-    if k_normal < 3 or k_avg < 1:
-        raise ValueError(f"local wall plane: need k_normal >= 3 and k_avg >= 1, got "
-                         f"{k_normal!r}, {k_avg!r}")
+    _check_plane(x.shape[0], k_normal, k_avg)
     x = jax.lax.stop_gradient(x)
-    mask = jnp.asarray(mask, bool)
-    vessel = mask & (jnp.asarray(node_type) == NodeType.VESSEL)
-    clot = clot_mask(node_type, mask)
     k_normal, k_avg = min(k_normal, x.shape[0]), min(k_avg, x.shape[0])
-    d2 = jnp.sum((x[:, None, :] - x[None, :, :]) ** 2, axis=-1)
-    ranked = jnp.where(vessel[None, :], -d2, -jnp.inf)
-    _, patch = jax.lax.top_k(ranked, k_normal)  # [N, k_normal]: every node's nearest vessel nodes
-    pts = x[patch]
-    dev = pts - pts.mean(axis=1, keepdims=True)
-    _, vecs = jnp.linalg.eigh(jnp.einsum("nki,nkj->nij", dev, dev))
-    normals = vecs[:, :, 0]  # least spread: the normal of the node's own patch (vessel nodes)
-    clot_centre = jnp.sum(jnp.where(clot[:, None], x, 0.0), axis=0) / jnp.maximum(clot.sum(), 1)
-    normals = jnp.where((jnp.sum((x - clot_centre) * normals, axis=-1) < 0)[:, None],
-                        -normals, normals)
+    patch = wall_patches(x, node_type, mask, k_normal=k_normal)  # [N, k_normal]
+    normals = _oriented_normals(x, node_type, mask, patch)
     # the barrier keeps XLA from fusing the gathers below into the search (measured 8x slower)
     normals, patch = jax.lax.optimization_barrier((normals, patch))
     near = patch[:, :k_avg]  # top_k is sorted: the k_avg nearest vessel nodes
     signed = jnp.mean(jnp.sum((x[:, None, :] - x[near]) * normals[near], axis=-1), axis=1)
-    normal = normals[near].mean(axis=1)
-    normal = normal / jnp.maximum(jnp.linalg.norm(normal, axis=-1, keepdims=True), 1e-12)
-    ok = (jnp.sum(vessel) >= k_normal) & jnp.any(clot)
+    normal = _averaged_normal(normals, near)
+    ok = _plane_ok(node_type, mask, k_normal)
     return jnp.where(ok, signed, 0.0), jnp.where(ok, normal, 0.0)
+
+
+def vessel_normals(
+    x: jax.Array, node_type: jax.Array, mask: jax.Array, patch: jax.Array, *,
+    k_avg: int = WALL_PLANE_NODES,
+) -> jax.Array:
+    """``[N, 3]``: :func:`local_wall_plane`'s normal on every real vessel node, from a search
+    made before (``patch = wall_patches(x0, ...)`` of any frame with the same vessel nodes,
+    e.g. a rollout's first). Jittable; no ``N x N`` search.
+
+    Equal on vessel rows to ``local_wall_plane(x, node_type, mask)[1]`` when the vessel nodes
+    of ``x`` are where they were in the searched frame (a rollout copies them exactly); the
+    rows of other nodes are not meaningful (their search is of the old frame). Zeros on every
+    node when the plane is undefined (as :func:`local_wall_plane`).
+
+    Args:
+        x: ``[N, 3]`` positions (gradients are stopped). node_type: ``[N]`` NodeType.
+        mask: ``[N]`` real nodes. patch: ``[N, k_normal]`` from :func:`wall_patches`.
+        k_avg: vessel nodes averaged per node (as :func:`local_wall_plane`).
+    """
+    k_normal = patch.shape[-1]
+    _check_plane(x.shape[0], 3, k_avg)
+    x = jax.lax.stop_gradient(x)
+    normals = _oriented_normals(x, node_type, mask, patch)
+    normal = _averaged_normal(normals, patch[:, :min(k_avg, x.shape[0])])
+    return jnp.where(_plane_ok(node_type, mask, k_normal), normal, 0.0)
 
 
 def signed_wall_features(

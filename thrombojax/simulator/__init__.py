@@ -1,6 +1,7 @@
 """The learned simulator: the one learned step and everything that acts on it.
 
 - :mod:`.step`: the learned step (inputs -> graph -> model -> denormalise -> integrate).
+- :mod:`.context`: what a rollout computes once for every step (the rigid vessel's wall search).
 - :mod:`.rollout`: the step in a ``lax.scan`` (rollouts, the k-step loss).
 - :mod:`.wall`, :mod:`.wall_build`: the rigid vessel wall as a pytree (triangles, or nodes and
   normals) and its exact nearest-point query; built on the host from a dataset frame.

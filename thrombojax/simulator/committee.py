@@ -40,11 +40,13 @@ __all__ = ["committee_rollout", "committee_jit"]
 
 def _committee_impl(step, params, stats, x0_prev, x0, node_type, mask, guards, n_steps):
     clot = clot_mask(node_type, mask)
+    # the rigid vessel's search, made once (the barrier: see thrombojax.simulator.rollout)
+    context = jax.lax.optimization_barrier(step.context(x0, node_type, mask))
 
     def body(carry, _):
         prev, cur = carry
-        preds = jax.vmap(
-            lambda p: step(p, stats, prev, cur, node_type, mask).positions)(params)
+        preds = jax.vmap(lambda p: step(p, stats, prev, cur, node_type, mask,
+                                        context=context).positions)(params)
         mean, spread = ensemble_stats(preds)
         nxt, corrections = (mean, {}) if guards is None else guards.apply(mean)
         return (step.shift(prev, cur), nxt), (preds, nxt, jnp.where(clot, spread, 0.0),

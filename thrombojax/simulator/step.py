@@ -48,6 +48,12 @@ the frames ``s_{t-H} .. s_{t-1}`` oldest first (:meth:`LearnedStep.previous` tak
 trajectory, :meth:`LearnedStep.shift` advances them in a rollout); ``H = 1`` keeps
 ``x_prev [n_nodes, 3]`` = s_{t-1}, unchanged.
 
+Rollout context: the vessel-axis inputs, the prior and the lateral hold search the vessel's wall
+(``N x N``) at every step, although the vessel is rigid. ``context = step.context(x0, node_type,
+mask)`` makes that search once (a :class:`StepContext`) and ``step(..., context=context)`` reads
+it, with the same result; every rollout (:func:`thrombojax.simulator.rollout.unroll` and the
+ensembles and committees built on the same scan) does so.
+
 Full resolution: ``make_step(model, grid=spec)`` carries a static cell-grid
 :class:`~thrombojax.graph.grid.GridSpec` to the model's radius search, which uses it where it pays
 (``N >= AUTO_GRID_MIN_NODES`` and fewer candidates than the dense search,
@@ -79,6 +85,7 @@ from thrombojax.graph.vessel_axis import (
 )
 from thrombojax.graph.wall_nodes import signed_wall_features, wall_node_features
 from thrombojax.models.registry import Surrogate
+from thrombojax.simulator.context import StepContext, make_context
 from thrombojax.simulator.kinematics import (
     integrate,
     make_input,
@@ -89,6 +96,7 @@ from thrombojax.types import ModelInput, TargetStats
 
 __all__ = [
     "StepOutput",
+    "StepContext",
     "LearnedStep",
     "make_step",
     "make_input",
@@ -236,16 +244,25 @@ class LearnedStep:
         """The frame the model works in (None: the global frame, nothing is transformed)."""
         return None if self.frame == "global" else vessel_frame(x_cur, node_type, mask)
 
+    def context(
+        self, x: jax.Array, node_type: jax.Array, mask: jax.Array
+    ) -> StepContext | None:
+        """The :class:`~thrombojax.simulator.context.StepContext` of a rollout whose vessel is
+        that of frame ``x`` (:func:`~thrombojax.simulator.context.make_context`); None when the
+        step reads no vessel axis."""
+        return make_context(self, x, node_type, mask)
+
     def inputs(
         self, stats: TargetStats, x_prev: jax.Array, x_cur: jax.Array, node_type: jax.Array,
-        mask: jax.Array,
+        mask: jax.Array, *, context: StepContext | None = None,
     ) -> ModelInput:
         """The model input of frame t (velocity normalised by ``stats.velocity_std``), in the
-        step's frame, with the wall features when the step has them."""
+        step's frame, with the wall features when the step has them (``context``: see
+        :meth:`__call__`)."""
         frame = self.frame_of(x_cur, node_type, mask)
-        return self._inputs(frame, stats, x_prev, x_cur, node_type, mask)
+        return self._inputs(frame, stats, x_prev, x_cur, node_type, mask, context)
 
-    def _inputs(self, frame, stats, x_prev, x_cur, node_type, mask) -> ModelInput:
+    def _inputs(self, frame, stats, x_prev, x_cur, node_type, mask, context=None) -> ModelInput:
         """``stats`` None (initialisation): unit scales."""
         if frame is not None:
             x_prev, x_cur = frame.points(x_prev), frame.points(x_cur)
@@ -260,32 +277,37 @@ class LearnedStep:
             features = signed_wall_features if self.wall_signed else wall_node_features
             extra.append(features(x_cur, node_type, mask, cutoff=self.wall_cutoff))
         if self.axis_radius > 0:
-            extra.append(axis_velocity_features(self.last_previous(x_prev), x_cur, node_type,
-                                                mask, radius=self.axis_radius,
-                                                velocity_scale=velocity_scale))
+            extra.append(axis_velocity_features(
+                self.last_previous(x_prev), x_cur, node_type, mask, radius=self.axis_radius,
+                velocity_scale=velocity_scale,
+                patch=None if context is None else context.input_patch))
         if extra:
             inputs = inputs.replace(extra=jnp.concatenate(extra, axis=-1))
         return inputs
 
-    def prior(self, x_last, x_cur, node_type, mask) -> jax.Array | float:
+    def prior(self, x_last, x_cur, node_type, mask, *,
+              context: StepContext | None = None) -> jax.Array | float:
         """What the step adds to constant velocity before the model's acceleration: the
         vessel-following offset (``prior_radius > 0``) or 0; ``x_last`` is s_{t-1}."""
         if self.prior_radius <= 0:
             return 0.0
-        return follow_axis_offset(x_last, x_cur, node_type, mask, radius=self.prior_radius)
+        return follow_axis_offset(x_last, x_cur, node_type, mask, radius=self.prior_radius,
+                                  patch=None if context is None else context.global_patch)
 
-    def accelerate(self, stats, out, frame, x_prev, x_cur, node_type, mask):
+    def accelerate(self, stats, out, frame, x_prev, x_cur, node_type, mask, context=None):
         """The model's output ``out`` to the global acceleration the step applies (the lateral
         hold, then the prior added) and the output the training loss compares: ``out`` itself,
         or with the lateral hold the held acceleration in the step's frame, normalised."""
         accel = stats.denormalize(out)
         if frame is not None:
             accel = frame.vectors_to_global(accel)
+        patch = None if context is None else context.global_patch
         if self.lateral_radius > 0:
             accel = accel - clot_lateral_mean(accel, x_cur, node_type, mask,
-                                              radius=self.lateral_radius)
+                                              radius=self.lateral_radius, patch=patch)
             out = stats.normalize(accel if frame is None else frame.vectors(accel))
-        return accel + self.prior(self.last_previous(x_prev), x_cur, node_type, mask), out
+        return accel + self.prior(self.last_previous(x_prev), x_cur, node_type, mask,
+                                  context=context), out
 
     def normalized_target(
         self, stats: TargetStats, accel: jax.Array, x_ref: jax.Array, node_type: jax.Array,
@@ -308,6 +330,7 @@ class LearnedStep:
         *,
         train: bool = False,
         rng: jax.Array | None = None,
+        context: StepContext | None = None,
     ) -> StepOutput:
         """One step s_{t-1}, s_t -> s_{t+1} (see the module docstring).
 
@@ -316,14 +339,17 @@ class LearnedStep:
             x_prev, x_cur: ``[n_nodes, 3]`` scaled positions s_{t-1}, s_t.
             node_type: ``[n_nodes]`` NodeType values. mask: ``[n_nodes]`` real-node mask.
             train: training mode (dropout). rng: PRNG key of the dropout stream.
+            context: :meth:`context` of a frame with the same vessel nodes (a rollout's
+                first): the vessel's wall search is read from it instead of repeated; the
+                result is the same. None: everything from this frame.
         Returns:
             The :class:`StepOutput`.
         """
         frame = self.frame_of(x_cur, node_type, mask)
-        inputs = self._inputs(frame, stats, x_prev, x_cur, node_type, mask)
+        inputs = self._inputs(frame, stats, x_prev, x_cur, node_type, mask, context)
         graph = self.build_graph(inputs)
         out = self.model.apply(params, inputs, graph, train=train, rng=rng)
-        accel, out = self.accelerate(stats, out, frame, x_prev, x_cur, node_type, mask)
+        accel, out = self.accelerate(stats, out, frame, x_prev, x_cur, node_type, mask, context)
         x_next = integrate(self.last_previous(x_prev), x_cur, accel, node_type, mask)
         return StepOutput(positions=x_next, output=out, overflow=graph_overflow(graph))
 
