@@ -45,7 +45,7 @@ demo: $(STAMP)
 
 test: $(STAMP)
 	$(BIN)/ruff check thrombojax tests benchmarks experiments
-	$(BIN)/python -m pytest -q -n 2 --dist loadfile --no-loadscope-reorder
+	$(BIN)/python -m pytest -q -n 2 --dist loadfile --no-loadscope-reorder --durations=30
 
 lint: $(STAMP)
 	$(BIN)/ruff check thrombojax tests benchmarks experiments
