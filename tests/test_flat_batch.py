@@ -79,9 +79,15 @@ def test_flat_equals_vmap_loss_and_gradients(options):
     _assert_same(*_setup(), **options)
 
 
-def test_flat_equals_vmap_in_the_vessel_frame_with_wall_features_prior_and_lateral_hold():
-    _assert_same(*_setup(frame="vessel", wall_cutoff=0.3, prior_radius=1.0, lateral_radius=1.0),
-                 train=True, noise_std=0.01)
+@pytest.mark.parametrize("options", [
+    {"train": True, "noise_std": 0.01},
+    {"train": True, "noise_std": 0.01, "k": 2, "pushforward": 1},
+], ids=["one-step", "k2-pushforward"])
+def test_flat_equals_vmap_in_the_vessel_frame_with_wall_features_prior_and_lateral_hold(options):
+    """The k-step loss unrolls the flat step with its rollout context (one per sample, the
+    vessel-axis search in the vessel's frame and in the global one)."""
+    _assert_same(*_setup(frame="vessel", wall_cutoff=0.3, axis_radius=1.0, prior_radius=1.0,
+                         lateral_radius=1.0), **options)
 
 
 def test_flat_graph_offsets_samples_and_keeps_sentinels():

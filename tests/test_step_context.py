@@ -7,6 +7,11 @@ import numpy as np
 import pytest
 from test_vessel_axis import _tube
 
+from thrombojax.graph.vessel_axis import (
+    axis_velocity_features,
+    clot_lateral_mean,
+    follow_axis_offset,
+)
 from thrombojax.graph.wall_nodes import (
     WALL_NORMAL_NODES,
     local_wall_plane,
@@ -93,6 +98,13 @@ def _primitives(jaxpr) -> set[str]:
     return out
 
 
+def _count(jaxpr, name: str) -> int:
+    """Equations of primitive ``name`` in ``jaxpr`` and its sub-jaxprs."""
+    return sum((eqn.primitive.name == name)
+               + sum(_count(sub, name) for sub in jax_core.jaxprs_in_params(eqn.params))
+               for eqn in jaxpr.eqns)
+
+
 def _scan_bodies(jaxpr):
     for eqn in jaxpr.eqns:
         if eqn.primitive.name == "scan":
@@ -120,6 +132,32 @@ def test_the_rollout_searches_the_wall_once_and_equals_the_step_in_a_loop():
     bodies = list(_scan_bodies(jaxpr))
     assert bodies and all("wall_search" not in _primitives(b) for b in bodies)
     assert "wall_search" in _primitives(jaxpr)  # made once, before the loop
+
+
+def test_one_step_computes_the_vessel_axis_once_for_inputs_prior_and_hold():
+    """XLA does not merge repeated LAPACK eigh calls inside a loop: the step shares the axis
+    (one eigh for the vessel normals, one for the axis), with the same result."""
+    (x0, x1, x2), nt, mask = _frames()
+    model = create_model("meshgraphnet", get_config("meshgraphnet", tiny=True))
+    step = make_step(model, axis_radius=2.0, prior_radius=2.0, lateral_radius=2.0)
+    params = step.init(jax.random.PRNGKey(4), x0, x1, nt, mask)
+    stats = _stats()
+    jaxpr = jax.make_jaxpr(lambda p, a, b: _scan(step, p, stats, a, b, nt, mask, 2)[0])(
+        params, x0, x1).jaxpr
+    body = next(_scan_bodies(jaxpr))  # the rollout's (the model's own scans come after)
+    assert _count(body, "eigh") == 2
+    # the parts the step shares it between give what each computes alone
+    out = step(params, stats, x1, x2, nt, mask)
+    inputs = step.inputs(stats, x1, x2, nt, mask)
+    alone = axis_velocity_features(x1, x2, nt, mask, radius=2.0, velocity_scale=0.1)
+    np.testing.assert_allclose(np.asarray(inputs.extra), np.asarray(alone), atol=1e-6)
+    graph = step.build_graph(inputs)
+    accel = _stats().denormalize(model.apply(params, inputs, graph))
+    accel = accel - clot_lateral_mean(accel, x2, nt, mask, radius=2.0)
+    accel = accel + follow_axis_offset(x1, x2, nt, mask, radius=2.0)
+    want = x2 + (x2 - x1) + jnp.where((np.asarray(nt) == NodeType.CLOT)[:, None], accel, 0.0)
+    want = jnp.where((np.asarray(nt) == NodeType.CLOT)[:, None], want, x2)
+    np.testing.assert_allclose(np.asarray(out.positions), np.asarray(want), atol=1e-5)
 
 
 def test_the_committee_reads_the_context_too():

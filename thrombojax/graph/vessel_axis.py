@@ -72,6 +72,7 @@ def vessel_axis(
 def axis_velocity_features(
     x_prev: jax.Array, x_cur: jax.Array, node_type: jax.Array, mask: jax.Array, *,
     radius: float, velocity_scale: jax.Array | float = 1.0, patch: jax.Array | None = None,
+    axis: jax.Array | None = None,
 ) -> jax.Array:
     """``[N, 6]``: the velocity along the local vessel axis and across it, on clot nodes.
 
@@ -80,11 +81,13 @@ def axis_velocity_features(
         mask: ``[N]`` real nodes. radius: see :func:`vessel_axis`.
         velocity_scale: both parts are divided by it (the step's velocity normalisation).
         patch: a wall search made before (:func:`vessel_axis`); None: search ``x_cur``.
+        axis: :func:`vessel_axis` of ``x_cur`` computed before (then ``radius`` and ``patch``
+            are not read); None: computed here.
     Returns:
         ``[(v . t) t, v - (v . t) t] / velocity_scale`` on real clot nodes, zeros elsewhere
         (``v = x_cur - x_prev``, ``t`` = :func:`vessel_axis` of ``x_cur``).
     """
-    t = vessel_axis(x_cur, node_type, mask, radius=radius, patch=patch)
+    t = vessel_axis(x_cur, node_type, mask, radius=radius, patch=patch) if axis is None else axis
     v = (x_cur - x_prev) / velocity_scale
     along = jnp.sum(v * t, axis=-1, keepdims=True) * t
     feats = jnp.concatenate([along, v - along], axis=-1)
@@ -102,7 +105,7 @@ def axis_speed_velocity(v: jax.Array, t: jax.Array) -> jax.Array:
 
 def follow_axis_offset(
     x_prev: jax.Array, x_cur: jax.Array, node_type: jax.Array, mask: jax.Array, *,
-    radius: float, patch: jax.Array | None = None,
+    radius: float, patch: jax.Array | None = None, axis: jax.Array | None = None,
 ) -> jax.Array:
     """``[N, 3]``: what turns each clot node's velocity onto the vessel's axis, keeping its speed.
 
@@ -116,8 +119,9 @@ def follow_axis_offset(
     Args:
         x_prev, x_cur: ``[N, 3]`` positions s_{t-1}, s_t. node_type: ``[N]`` NodeType.
         mask: ``[N]`` real nodes. radius, patch: see :func:`vessel_axis`.
+        axis: see :func:`axis_velocity_features`.
     """
-    t = vessel_axis(x_cur, node_type, mask, radius=radius, patch=patch)
+    t = vessel_axis(x_cur, node_type, mask, radius=radius, patch=patch) if axis is None else axis
     v = x_cur - x_prev
     offset = axis_speed_velocity(v, t) - v
     defined = jnp.sum(t * t, axis=-1, keepdims=True) > 0.5
@@ -126,7 +130,7 @@ def follow_axis_offset(
 
 def clot_lateral_mean(
     accel: jax.Array, x: jax.Array, node_type: jax.Array, mask: jax.Array, *, radius: float,
-    patch: jax.Array | None = None,
+    patch: jax.Array | None = None, axis: jax.Array | None = None,
 ) -> jax.Array:
     """``[N, 3]``: the clot-wide mean of the accelerations' parts across the vessel's axis.
 
@@ -141,12 +145,12 @@ def clot_lateral_mean(
     Args:
         accel: ``[N, 3]`` accelerations (global frame). x: ``[N, 3]`` positions, the axis's.
         node_type: ``[N]`` NodeType. mask: ``[N]`` real nodes. radius, patch: see
-            :func:`vessel_axis`.
+            :func:`vessel_axis`. axis: see :func:`axis_velocity_features` (of ``x``).
     Returns:
         The mean on every real clot node, zeros elsewhere and everywhere when the axis is
         undefined (no real vessel or clot node). Linear in ``accel`` (the axis is constant).
     """
-    t = vessel_axis(x, node_type, mask, radius=radius, patch=patch)
+    t = vessel_axis(x, node_type, mask, radius=radius, patch=patch) if axis is None else axis
     clot = clot_mask(node_type, mask)[:, None]
     lateral = accel - jnp.sum(accel * t, axis=-1, keepdims=True) * t
     count = jnp.maximum(clot.sum(), 1)

@@ -126,14 +126,16 @@ def wall_patches(
         x: ``[N, 3]`` positions (gradients are stopped). node_type: ``[N]`` NodeType.
         mask: ``[N]`` real nodes. k_normal: nodes per row (>= 3; at most ``N``).
     """
-    _check_plane(x.shape[0], k_normal, WALL_PLANE_NODES)
+    _check_plane(x.shape[0])
+    if k_normal < 1:
+        raise ValueError(f"wall patches: need k_normal >= 1, got {k_normal!r}")
     x = jax.lax.stop_gradient(x)
     vessel = jnp.asarray(mask, bool) & (jnp.asarray(node_type) == NodeType.VESSEL)
     ranked = jnp.where(vessel[None, :], -pairwise_sq_distances(x), -jnp.inf)
     return jax.lax.top_k(ranked, min(k_normal, x.shape[0]))[1]
 
 
-def _check_plane(n: int, k_normal: int, k_avg: int) -> None:
+def _check_plane(n: int, k_normal: int = 3, k_avg: int = 1) -> None:
     if n > DENSE_PLANE_NODES:
         raise ValueError(f"local wall plane: {n} nodes; its dense search is meant for "
                          f"at most {DENSE_PLANE_NODES} (signed wall features, vessel-axis "
@@ -230,7 +232,7 @@ def vessel_normals(
         k_avg: vessel nodes averaged per node (as :func:`local_wall_plane`).
     """
     k_normal = patch.shape[-1]
-    _check_plane(x.shape[0], 3, k_avg)
+    _check_plane(x.shape[0], k_avg=k_avg)
     x = jax.lax.stop_gradient(x)
     normals = _oriented_normals(x, node_type, mask, patch)
     normal = _averaged_normal(normals, patch[:, :min(k_avg, x.shape[0])])

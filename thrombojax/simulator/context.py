@@ -19,9 +19,10 @@ from __future__ import annotations
 import jax
 from flax import struct
 
+from thrombojax.graph.vessel_axis import vessel_axis
 from thrombojax.graph.wall_nodes import wall_patches
 
-__all__ = ["StepContext", "make_context"]
+__all__ = ["StepContext", "make_context", "shared_axes"]
 
 
 @struct.dataclass
@@ -73,3 +74,23 @@ def make_context(step, x: jax.Array, node_type: jax.Array, mask: jax.Array) -> S
     frame = step.frame_of(x, node_type, mask)
     return StepContext(global_patch=glob,
                        frame_patch=wall_patches(frame.points(x), node_type, mask))
+
+
+def shared_axes(x: jax.Array, node_type: jax.Array, mask: jax.Array,
+                context: StepContext | None, *, inputs: bool = False):
+    """``radius -> vessel_axis(x, ..., radius=radius, patch=...)``, each width computed once;
+    the patch is the context's search for the inputs' coordinates (``inputs``) or the global
+    one, or none (``context`` None: the axis searches ``x``).
+
+    A step's inputs, prior and lateral hold read the same axis; XLA merges the repeated
+    computation in one step but not inside a rollout's loop, where its LAPACK ``eigh`` calls ran
+    twice (measured: 12 ms more per step at 2,048 nodes on this CPU), so the step shares it."""
+    patch = None if context is None else (context.input_patch if inputs else context.global_patch)
+    memo: dict[float, jax.Array] = {}
+
+    def axis(radius: float) -> jax.Array:
+        if radius not in memo:
+            memo[radius] = vessel_axis(x, node_type, mask, radius=radius, patch=patch)
+        return memo[radius]
+
+    return axis

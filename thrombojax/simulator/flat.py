@@ -107,6 +107,10 @@ class FlatStep:
         """As :meth:`LearnedStep.require_dense`."""
         self.step.require_dense(what)
 
+    def context(self, x: jax.Array, node_type: jax.Array, mask: jax.Array):
+        """As :meth:`LearnedStep.context`, of every sample (leading batch axis ``[B, ...]``)."""
+        return jax.vmap(self.step.context)(x, node_type, mask)
+
     def __call__(
         self,
         params: dict,
@@ -118,26 +122,28 @@ class FlatStep:
         *,
         train: bool = False,
         rng: jax.Array | None = None,
+        context=None,
     ) -> StepOutput:
-        """One step of every sample: ``x_prev, x_cur [B, N, 3]``, ``node_type, mask [B, N]``.
+        """One step of every sample: ``x_prev, x_cur [B, N, 3]``, ``node_type, mask [B, N]``;
+        ``context``: :meth:`context` (batched), or None.
 
         Returns: positions and outputs ``[B, N, 3]``, overflow ``[]`` (any sample's graph).
         """
         step = self.step
         b, n = mask.shape
 
-        def prepare(p, c, t, m):
-            inputs = step._inputs(step.frame_of(c, t, m), stats, p, c, t, m)
+        def prepare(p, c, t, m, ctx):
+            inputs = step._inputs(step.frame_of(c, t, m), stats, p, c, t, m, ctx)
             return inputs, step.build_graph(inputs)
 
-        inputs, graphs = jax.vmap(prepare)(x_prev, x_cur, node_type, mask)
+        inputs, graphs = jax.vmap(prepare)(x_prev, x_cur, node_type, mask, context)
         flat_inputs = jax.tree.map(lambda x: x.reshape((b * n,) + x.shape[2:]), inputs)
         out = step.model.apply(params, flat_inputs, flatten_graphs(graphs), train=train, rng=rng)
         out = out.reshape(b, n, -1)
 
-        def finish(o, p, c, t, m):
-            accel, o = step.accelerate(stats, o, step.frame_of(c, t, m), p, c, t, m)
+        def finish(o, p, c, t, m, ctx):
+            accel, o = step.accelerate(stats, o, step.frame_of(c, t, m), p, c, t, m, ctx)
             return integrate(p, c, accel, t, m), o
 
-        positions, out = jax.vmap(finish)(out, x_prev, x_cur, node_type, mask)
+        positions, out = jax.vmap(finish)(out, x_prev, x_cur, node_type, mask, context)
         return StepOutput(positions=positions, output=out, overflow=graph_overflow(graphs))

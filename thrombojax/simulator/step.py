@@ -48,11 +48,9 @@ the frames ``s_{t-H} .. s_{t-1}`` oldest first (:meth:`LearnedStep.previous` tak
 trajectory, :meth:`LearnedStep.shift` advances them in a rollout); ``H = 1`` keeps
 ``x_prev [n_nodes, 3]`` = s_{t-1}, unchanged.
 
-Rollout context: the vessel-axis inputs, the prior and the lateral hold search the vessel's wall
-(``N x N``) at every step, although the vessel is rigid. ``context = step.context(x0, node_type,
-mask)`` makes that search once (a :class:`StepContext`) and ``step(..., context=context)`` reads
-it, with the same result; every rollout (:func:`thrombojax.simulator.rollout.unroll` and the
-ensembles and committees built on the same scan) does so.
+Rollout context: the vessel is rigid, so ``step.context(x0, node_type, mask)`` searches its wall
+once (:mod:`thrombojax.simulator.context`) and ``step(..., context=...)`` reads the search, with
+the same result; every rollout (:func:`thrombojax.simulator.rollout.unroll`) does so.
 
 Full resolution: ``make_step(model, grid=spec)`` carries a static cell-grid
 :class:`~thrombojax.graph.grid.GridSpec` to the model's radius search, which uses it where it pays
@@ -85,7 +83,7 @@ from thrombojax.graph.vessel_axis import (
 )
 from thrombojax.graph.wall_nodes import signed_wall_features, wall_node_features
 from thrombojax.models.registry import Surrogate
-from thrombojax.simulator.context import StepContext, make_context
+from thrombojax.simulator.context import StepContext, make_context, shared_axes
 from thrombojax.simulator.kinematics import (
     integrate,
     make_input,
@@ -262,10 +260,14 @@ class LearnedStep:
         frame = self.frame_of(x_cur, node_type, mask)
         return self._inputs(frame, stats, x_prev, x_cur, node_type, mask, context)
 
-    def _inputs(self, frame, stats, x_prev, x_cur, node_type, mask, context=None) -> ModelInput:
-        """``stats`` None (initialisation): unit scales."""
+    def _inputs(self, frame, stats, x_prev, x_cur, node_type, mask, context=None,
+                axes=None) -> ModelInput:
+        """``stats`` None (initialisation): unit scales. ``axes``: :func:`_axes` of ``x_cur``
+        in global coordinates (read only when the step works in them)."""
         if frame is not None:
             x_prev, x_cur = frame.points(x_prev), frame.points(x_cur)
+        if axes is None or frame is not None:
+            axes = shared_axes(x_cur, node_type, mask, context, inputs=True)
         velocity_scale = 1.0 if stats is None else stats.velocity_std
         inputs = make_input(self.last_previous(x_prev), x_cur, node_type, mask, velocity_scale)
         extra = []
@@ -279,35 +281,42 @@ class LearnedStep:
         if self.axis_radius > 0:
             extra.append(axis_velocity_features(
                 self.last_previous(x_prev), x_cur, node_type, mask, radius=self.axis_radius,
-                velocity_scale=velocity_scale,
-                patch=None if context is None else context.input_patch))
+                velocity_scale=velocity_scale, axis=axes(self.axis_radius)))
         if extra:
             inputs = inputs.replace(extra=jnp.concatenate(extra, axis=-1))
         return inputs
 
-    def prior(self, x_last, x_cur, node_type, mask, *,
-              context: StepContext | None = None) -> jax.Array | float:
+    def prior(self, x_last, x_cur, node_type, mask, *, context: StepContext | None = None,
+              axis: jax.Array | None = None) -> jax.Array | float:
         """What the step adds to constant velocity before the model's acceleration: the
-        vessel-following offset (``prior_radius > 0``) or 0; ``x_last`` is s_{t-1}."""
+        vessel-following offset (``prior_radius > 0``) or 0; ``x_last`` is s_{t-1}; ``axis``:
+        the vessel axis of ``x_cur`` at ``prior_radius`` if computed before."""
         if self.prior_radius <= 0:
             return 0.0
         return follow_axis_offset(x_last, x_cur, node_type, mask, radius=self.prior_radius,
-                                  patch=None if context is None else context.global_patch)
+                                  patch=None if context is None else context.global_patch,
+                                  axis=axis)
 
-    def accelerate(self, stats, out, frame, x_prev, x_cur, node_type, mask, context=None):
+    def accelerate(self, stats, out, frame, x_prev, x_cur, node_type, mask, context=None,
+                   axes=None):
         """The model's output ``out`` to the global acceleration the step applies (the lateral
         hold, then the prior added) and the output the training loss compares: ``out`` itself,
-        or with the lateral hold the held acceleration in the step's frame, normalised."""
+        or with the lateral hold the held acceleration in the step's frame, normalised.
+        ``axes``: :func:`_axes` of ``x_cur``, shared with the inputs (None: made here)."""
         accel = stats.denormalize(out)
         if frame is not None:
             accel = frame.vectors_to_global(accel)
-        patch = None if context is None else context.global_patch
+        if axes is None:
+            axes = shared_axes(x_cur, node_type, mask, context)
         if self.lateral_radius > 0:
             accel = accel - clot_lateral_mean(accel, x_cur, node_type, mask,
-                                              radius=self.lateral_radius, patch=patch)
+                                              radius=self.lateral_radius,
+                                              axis=axes(self.lateral_radius))
             out = stats.normalize(accel if frame is None else frame.vectors(accel))
-        return accel + self.prior(self.last_previous(x_prev), x_cur, node_type, mask,
-                                  context=context), out
+        prior = (0.0 if self.prior_radius <= 0 else
+                 self.prior(self.last_previous(x_prev), x_cur, node_type, mask,
+                            axis=axes(self.prior_radius)))
+        return accel + prior, out
 
     def normalized_target(
         self, stats: TargetStats, accel: jax.Array, x_ref: jax.Array, node_type: jax.Array,
@@ -346,10 +355,12 @@ class LearnedStep:
             The :class:`StepOutput`.
         """
         frame = self.frame_of(x_cur, node_type, mask)
-        inputs = self._inputs(frame, stats, x_prev, x_cur, node_type, mask, context)
+        axes = shared_axes(x_cur, node_type, mask, context)
+        inputs = self._inputs(frame, stats, x_prev, x_cur, node_type, mask, context, axes)
         graph = self.build_graph(inputs)
         out = self.model.apply(params, inputs, graph, train=train, rng=rng)
-        accel, out = self.accelerate(stats, out, frame, x_prev, x_cur, node_type, mask, context)
+        accel, out = self.accelerate(stats, out, frame, x_prev, x_cur, node_type, mask, context,
+                                     axes)
         x_next = integrate(self.last_previous(x_prev), x_cur, accel, node_type, mask)
         return StepOutput(positions=x_next, output=out, overflow=graph_overflow(graph))
 
