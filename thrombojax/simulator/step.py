@@ -245,9 +245,8 @@ class LearnedStep:
     def context(
         self, x: jax.Array, node_type: jax.Array, mask: jax.Array
     ) -> StepContext | None:
-        """The :class:`~thrombojax.simulator.context.StepContext` of a rollout whose vessel is
-        that of frame ``x`` (:func:`~thrombojax.simulator.context.make_context`); None when the
-        step reads no vessel axis."""
+        """:func:`~thrombojax.simulator.context.make_context`: the context of a rollout on the
+        vessel of frame ``x``; None when the step reads no vessel axis."""
         return make_context(self, x, node_type, mask)
 
     def inputs(
@@ -262,7 +261,7 @@ class LearnedStep:
 
     def _inputs(self, frame, stats, x_prev, x_cur, node_type, mask, context=None,
                 axes=None) -> ModelInput:
-        """``stats`` None (initialisation): unit scales. ``axes``: :func:`_axes` of ``x_cur``
+        """``stats`` None (initialisation): unit scales. ``axes``: ``shared_axes`` of ``x_cur``
         in global coordinates (read only when the step works in them)."""
         if frame is not None:
             x_prev, x_cur = frame.points(x_prev), frame.points(x_cur)
@@ -302,7 +301,8 @@ class LearnedStep:
         """The model's output ``out`` to the global acceleration the step applies (the lateral
         hold, then the prior added) and the output the training loss compares: ``out`` itself,
         or with the lateral hold the held acceleration in the step's frame, normalised.
-        ``axes``: :func:`_axes` of ``x_cur``, shared with the inputs (None: made here)."""
+        ``axes``: :func:`~thrombojax.simulator.context.shared_axes` of ``x_cur``, shared with
+        the inputs (None: made here)."""
         accel = stats.denormalize(out)
         if frame is not None:
             accel = frame.vectors_to_global(accel)
