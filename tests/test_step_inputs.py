@@ -139,6 +139,46 @@ def test_wall_features_reach_the_model(frames):
         make_step(model, "sideways")
 
 
+def test_clot_wall_mean_gives_every_clot_node_the_clot_wide_room(frames):
+    """``wall_clot_mean``: one more input column, on every real clot node the mean of the clot's
+    clipped wall distances (padded and vessel nodes 0); it grows when the vessel is wider about
+    the clot, where each node alone sees only its own distance; it needs the wall features."""
+    pos, nt = frames
+    mask = np.ones(len(nt), bool)
+    clot = nt == NodeType.CLOT
+    mask[np.flatnonzero(clot)[-3:]] = False  # three padded clot nodes do not count
+    real = clot & mask
+    model = create_model("mgn", get_config("mgn", tiny=True, max_neighbors=4))
+    walled = make_step(model, wall_cutoff=0.5)
+    room = make_step(model, wall_cutoff=0.5, wall_clot_mean=True)
+    stats = identity_stats()
+
+    def extra(step, x):
+        return np.asarray(step.inputs(stats, x, x, nt, mask).extra)
+
+    plain, with_room = extra(walled, pos[1]), extra(room, pos[1])
+    assert with_room.shape[1] == plain.shape[1] + 1
+    np.testing.assert_array_equal(with_room[:, :-1], plain)
+    np.testing.assert_allclose(with_room[real, -1], plain[real, 0].mean(), rtol=1e-6)
+    assert np.all(with_room[~real, -1] == 0.0)
+    # the vessel 20 % wider about the clot's centroid: the clot has more room
+    centre = pos[1][real].mean(0)
+    wide = np.where(clot[:, None], pos[1], centre + 1.2 * (pos[1] - centre))
+    assert extra(room, wide)[real, -1].mean() > with_room[real, -1].mean()
+    p0 = walled.init(jax.random.key(0), pos[0], pos[1], nt, mask)
+    p1 = room.init(jax.random.key(0), pos[0], pos[1], nt, mask)
+    assert (p1["params"]["node_encoder"]["dense_0"]["kernel"].shape[0]
+            == p0["params"]["node_encoder"]["dense_0"]["kernel"].shape[0] + 1)
+    with pytest.raises(ConfigError, match="wall_clot_mean"):
+        make_step(model, wall_clot_mean=True)
+    from thrombojax.train.config import TrainConfig
+
+    with pytest.raises(ConfigError, match="wall-clot-mean"):
+        TrainConfig(wall_clot_mean=True)
+    with pytest.raises(ConfigError, match="wall_clot_mean"):
+        TrainConfig(wall_features=0.5, wall_clot_mean=1)
+
+
 def test_recipes():
     from thrombojax.train.config import TrainConfig
     from thrombojax.train.recipes import DEFAULT_RECIPE, recipe
@@ -180,13 +220,14 @@ def test_cli_trains_with_the_default_recipe_and_reloads_the_step(tmp_path):
     from thrombojax.eval.report import rollout_run
     from thrombojax.train.state import load_trained
 
-    data, run = train_tiny_cli(tmp_path, "--wall-features", "2", "--frame", "vessel", n_nodes=80)
+    data, run = train_tiny_cli(tmp_path, "--wall-features", "2", "--wall-clot-mean", "--frame",
+                               "vessel", n_nodes=80)
     loaded = load_trained(run)
     cfg = loaded.run.train
     assert (cfg.frame, cfg.history, cfg.noise_walk, cfg.rollout_steps) == ("vessel", 2, True, 1)
     assert loaded.step.frame == "vessel" and loaded.step.history == 2
     assert loaded.step.wall_cutoff == pytest.approx(loaded.config["wall_cutoff"])
-    assert loaded.step.wall_cutoff > 0
+    assert loaded.step.wall_cutoff > 0 and loaded.step.wall_clot_mean and cfg.wall_clot_mean
     assert loaded.run.train.axis_features == 2.0 and loaded.step.axis_radius > 0  # the default
     report = rollout_run(run, data, tmp_path / "rollout", progress=False, gif=False)
     sims = report["simulations"]

@@ -152,6 +152,9 @@ def _add_train(sub) -> None:
                    "--wall-features: the features are the signed distance to the wall "
                    "(positive outside) and its outward normal, which tell a node that crossed "
                    "the wall from one inside it")
+    p.add_argument("--wall-clot-mean", action="store_true", default=None, help="with "
+                   "--wall-features: every clot node also gets the clot-wide mean of the wall "
+                   "distance, the room the whole clot has (its speed follows the vessel's width)")
     p.add_argument("--select-by", choices=("mse", "rollout", "last"), help="what picks the "
                    "best checkpoint: 'mse' (the study's: the lowest one-step validation MSE), "
                    "'rollout' (each epoch also rolls the model out alone on every validation "
@@ -176,6 +179,7 @@ def _run_train(args) -> int:
              "n_test", "tiny", "rollout_steps", "noise_gamma", "pushforward_steps",
              "curriculum_epochs", "frame", "wall_features", "history", "noise_walk",
              "stop_history_gradient", "noise_shared", "wall_noise", "wall_signed",
+             "wall_clot_mean",
              "history_noise", "speed_noise", "direction_noise", "swell_noise", "time_scale",
              "clot_mean_weight", "select_by",
              "axis_features", "follow_axis", "lateral_hold")

@@ -35,18 +35,18 @@ clot node's input the distance and direction to its nearest vessel node
 even when no vessel node is among its graph neighbours; ``make_step(model, wall_cutoff=c,
 wall_signed=True)`` gives instead the signed distance to the wall and its outward normal
 (:func:`thrombojax.graph.wall_nodes.signed_wall_features`), which tell a node that crossed the
-wall from one inside it.
+wall from one inside it; ``wall_clot_mean=True`` adds their clot-wide mean distance
+(:func:`thrombojax.graph.wall_nodes.clot_wall_mean`: the room the whole clot has).
 
-History: ``make_step(model, history=H)`` (``H >= 2``) also gives the model the accelerations of
-the ``H - 1`` steps before t, ``a_{t-j} = s_{t-j+1} - 2 s_{t-j} + s_{t-j-1}`` (in the step's frame,
-divided by one number, the RMS of ``stats.std``), as extra node features. The dynamics carry
-state the current velocity does not show (the drive ramps in time; damping, friction and drive
-differ per simulation), and the last acceleration is its best witness: extrapolating it alone is
-0.59x constant velocity in one step on BendVessel's rollout phase, better than any
-one-velocity model we trained (``docs/rollouts.md``). ``x_prev`` is then ``[H, n_nodes, 3]``,
-the frames ``s_{t-H} .. s_{t-1}`` oldest first (:meth:`LearnedStep.previous` takes them from a
-trajectory, :meth:`LearnedStep.shift` advances them in a rollout); ``H = 1`` keeps
-``x_prev [n_nodes, 3]`` = s_{t-1}, unchanged.
+History: ``make_step(model, history=H)`` (``H >= 2``) also gives the model the accelerations of the
+``H - 1`` steps before t, ``a_{t-j} = s_{t-j+1} - 2 s_{t-j} + s_{t-j-1}`` (in the step's frame,
+divided by one number, the RMS of ``stats.std``), as extra node features. The dynamics carry state
+the current velocity does not show (the drive ramps in time; damping, friction and drive differ per
+simulation), and the last acceleration is its best witness: extrapolated alone, it is 0.59x
+constant velocity in one step on BendVessel's rollout phase (``docs/rollouts.md``). ``x_prev`` is
+then ``[H, n_nodes, 3]``, the frames ``s_{t-H} .. s_{t-1}`` oldest first
+(:meth:`LearnedStep.previous` takes them from a trajectory, :meth:`LearnedStep.shift` advances them
+in a rollout); ``H = 1`` keeps ``x_prev [n_nodes, 3]`` = s_{t-1}.
 
 Rollout context: the vessel is rigid, so ``step.context(x0, node_type, mask)`` searches its wall
 once (:mod:`thrombojax.simulator.context`) and ``step(..., context=...)`` reads the search, with
@@ -58,8 +58,8 @@ Full resolution: ``make_step(model, grid=spec)`` carries a static cell-grid
 :func:`thrombojax.graph.neighbors.radius_graph`) and the dense search elsewhere (small clouds are
 unchanged bit for bit). :attr:`StepOutput.overflow` reports a grid buffer that was too small; the
 host sizes the spec from the data and re-allocates on overflow
-(:mod:`thrombojax.simulator.grid_step`). Consumers that do not check the flag refuse a step with
-a grid (:meth:`LearnedStep.require_dense`).
+(:mod:`thrombojax.simulator.grid_step`). Consumers that do not check the flag refuse a step with a
+grid (:meth:`LearnedStep.require_dense`).
 """
 
 from __future__ import annotations
@@ -81,7 +81,7 @@ from thrombojax.graph.vessel_axis import (
     clot_lateral_mean,
     follow_axis_offset,
 )
-from thrombojax.graph.wall_nodes import signed_wall_features, wall_node_features
+from thrombojax.graph.wall_nodes import clot_wall_mean, signed_wall_features, wall_node_features
 from thrombojax.models.registry import Surrogate
 from thrombojax.simulator.context import StepContext, make_context, shared_axes
 from thrombojax.simulator.kinematics import (
@@ -137,6 +137,7 @@ class LearnedStep:
         wall_signed: the wall features are the signed distance to the wall and its outward
             normal (:func:`thrombojax.graph.wall_nodes.signed_wall_features`), not the distance
             and direction to the nearest vessel node.
+        wall_clot_mean: the clot nodes also get the clot-wide mean of the wall distance feature.
         grid: cell grid of the model's radius graph, in the step's frame (None: dense search).
         history: frames before t the step reads (1: s_{t-1}, the velocity alone; H >= 2: also
             the H - 1 accelerations before t, see the module docstring).
@@ -159,6 +160,7 @@ class LearnedStep:
     frame: str = "global"
     wall_cutoff: float = 0.0
     wall_signed: bool = False
+    wall_clot_mean: bool = False
     grid: GridSpec | None = None
     history: int = 1
     stop_history_gradient: bool = False
@@ -170,13 +172,12 @@ class LearnedStep:
         if self.frame not in FRAMES:
             raise ConfigError(f"learned step: frame must be one of {list(FRAMES)}, "
                               f"got {self.frame!r}")
-        if not (self.wall_cutoff >= 0 and self.wall_cutoff < float("inf")):
-            raise ConfigError(f"learned step: wall_cutoff must be a finite number >= 0, "
-                              f"got {self.wall_cutoff!r}")
-        for name in ("axis_radius", "prior_radius", "lateral_radius"):
+        for name in ("wall_cutoff", "axis_radius", "prior_radius", "lateral_radius"):
             if not (getattr(self, name) >= 0 and getattr(self, name) < float("inf")):
                 raise ConfigError(f"learned step: {name} must be a finite number >= 0, "
                                   f"got {getattr(self, name)!r}")
+        if self.wall_clot_mean and not self.wall_cutoff > 0:
+            raise ConfigError("learned step: wall_clot_mean needs wall features (wall_cutoff > 0)")
         if not isinstance(self.history, int) or isinstance(self.history, bool) or \
                 self.history < 1:
             raise ConfigError(f"learned step: history must be an int >= 1 (frames before t), "
@@ -277,6 +278,8 @@ class LearnedStep:
         if self.wall_cutoff > 0:
             features = signed_wall_features if self.wall_signed else wall_node_features
             extra.append(features(x_cur, node_type, mask, cutoff=self.wall_cutoff))
+            if self.wall_clot_mean:
+                extra.append(clot_wall_mean(extra[-1], node_type, mask))
         if self.axis_radius > 0:
             extra.append(axis_velocity_features(
                 self.last_previous(x_prev), x_cur, node_type, mask, radius=self.axis_radius,
@@ -384,15 +387,14 @@ def make_step(model: Surrogate, frame: str = "global", wall_cutoff: float = 0.0,
               grid: GridSpec | None = None, history: int = 1,
               stop_history_gradient: bool = False, wall_signed: bool = False,
               axis_radius: float = 0.0, prior_radius: float = 0.0,
-              lateral_radius: float = 0.0) -> LearnedStep:
+              lateral_radius: float = 0.0, wall_clot_mean: bool = False) -> LearnedStep:
     """The learned simulator of a surrogate in ``frame``, with wall features when
     ``wall_cutoff > 0``, vessel-axis features when ``axis_radius > 0``, the vessel-following
     prior when ``prior_radius > 0``, the lateral hold when ``lateral_radius > 0``, the cell
-    ``grid``
-    where it pays and ``history`` previous frames (see the module docstring and
-    :class:`LearnedStep`)."""
+    ``grid`` where it pays and ``history`` previous frames (module docstring, LearnedStep)."""
     return LearnedStep(model=model, frame=frame, wall_cutoff=float(wall_cutoff), grid=grid,
                        history=history, stop_history_gradient=bool(stop_history_gradient),
                        wall_signed=bool(wall_signed), axis_radius=float(axis_radius),
                        prior_radius=float(prior_radius),
-                       lateral_radius=float(lateral_radius))
+                       lateral_radius=float(lateral_radius),
+                       wall_clot_mean=bool(wall_clot_mean))

@@ -103,13 +103,14 @@ def check_train_values(cfg: Any) -> None:
         n_windows=1, n_val_windows=0, bary_ratio=cfg.bary_ratio, batch_size=cfg.batch_size or 1,
         budget=1, length=3, max_neighbors=cfg.bary_max_neighbors,
     ), values={"bary_ratio": float(cfg.bary_ratio), "bary_max_neighbors": cfg.bary_max_neighbors})
-    for flag in ("tiny", "noise_walk", "stop_history_gradient", "wall_signed"):
+    for flag in ("tiny", "noise_walk", "stop_history_gradient", "wall_signed", "wall_clot_mean"):
         if not isinstance(getattr(cfg, flag, False), bool):
             raise ConfigError(f"{_option(flag)} ({flag}) must be true or false, got "
                               f"{getattr(cfg, flag)!r}")
-    if getattr(cfg, "wall_signed", False) and not getattr(cfg, "wall_features", 0.0) > 0:
-        raise ConfigError("--wall-signed (wall_signed) needs --wall-features C > 0 (the cutoff "
-                          "of the features it changes)")
+    for flag in ("wall_signed", "wall_clot_mean"):
+        if getattr(cfg, flag, False) and not getattr(cfg, "wall_features", 0.0) > 0:
+            raise ConfigError(f"{_option(flag)} ({flag}) needs --wall-features C > 0 (the "
+                              "cutoff of the features it changes)")
     if getattr(cfg, "history_noise", 0.0) > 0 and getattr(cfg, "history", 1) < 2:
         raise ConfigError("--history-noise (history_noise) needs --history H >= 2 (it perturbs "
                           "the history's accelerations; with one previous frame there are none)")

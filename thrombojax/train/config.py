@@ -115,6 +115,9 @@ class TrainConfig:
         wall_signed: with ``wall_features``, the features are the signed distance to the wall
             (positive outside) and its outward normal instead
             (:func:`thrombojax.graph.wall_nodes.signed_wall_features`).
+        wall_clot_mean: with ``wall_features``, every clot node also gets the clot-wide mean
+            of the wall distance feature, the room the whole clot has in the vessel
+            (:func:`thrombojax.graph.wall_nodes.clot_wall_mean`).
         axis_features: width, in vessel radii, of the local vessel axis's neighbourhood: clot
             nodes' inputs get their velocity split along and across the vessel's axis
             (0: off; :func:`thrombojax.graph.vessel_axis.axis_velocity_features`).
@@ -180,6 +183,7 @@ class TrainConfig:
     follow_axis: float = 0.0
     lateral_hold: float = 0.0
     wall_signed: bool = False
+    wall_clot_mean: bool = False
     history: int = 1
     stop_history_gradient: bool = False
     tiny: bool = False

@@ -234,7 +234,8 @@ def train(
                         stop_history_gradient=cfg.stop_history_gradient,
                         wall_signed=cfg.wall_signed, axis_radius=cfg.axis_features * radius,
                         prior_radius=cfg.follow_axis * radius,
-                        lateral_radius=cfg.lateral_hold * radius)
+                        lateral_radius=cfg.lateral_hold * radius,
+                        wall_clot_mean=cfg.wall_clot_mean)
     state = init_state(step_fn, tx, init_key, batch_of(plan_of(epoch=0)[0]))
     run_config = {
         **RunConfig(model=model_name, dataset=str(pathlib.Path(dataset_path).resolve()),

@@ -97,7 +97,8 @@ class TrainedModel:
                          wall_signed=self.run.train.wall_signed,
                          axis_radius=float(self.config.get("axis_radius", 0.0)),
                          prior_radius=float(self.config.get("prior_radius", 0.0)),
-                         lateral_radius=float(self.config.get("lateral_radius", 0.0)))
+                         lateral_radius=float(self.config.get("lateral_radius", 0.0)),
+                         wall_clot_mean=self.run.train.wall_clot_mean)
 
 
 def _manager(directory: pathlib.Path, *, read_only: bool = False) -> ocp.CheckpointManager:
