@@ -5,7 +5,7 @@ speed jitters): their correlation, their ranges, and the error along the true tr
 No model is run. Writes ``speed_profile.md`` (with the command and date) and
 ``speed_profile.png`` into ``--out`` (atomically; existing files only with ``--force``).
 
-    python speed_profile.py --out DIR RUN_FOLDER/RUNG [RUN_FOLDER/RUNG ...]
+    python speed_profile.py --out DIR RUN_FOLDER/RUNG [RUN_FOLDER/RUNG=LABEL ...]
 """
 
 from __future__ import annotations
@@ -43,7 +43,9 @@ def profile(result: dict, width: int) -> dict[str, dict]:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("rungs", nargs="+", help="rung folders holding result.json")
+    parser.add_argument("rungs", nargs="+", help="rung folders holding result.json, each "
+                        "optionally FOLDER=LABEL (the label of its rows; default the folder's "
+                        "name)")
     parser.add_argument("--out", required=True, help="folder for speed_profile.md and .png")
     parser.add_argument("--smooth", type=int, default=10, help="frames of the moving mean")
     parser.add_argument("--force", action="store_true", help="replace existing outputs")
@@ -54,13 +56,15 @@ def main(argv: list[str] | None = None) -> int:
     check_targets([out / "speed_profile.md", out / "speed_profile.png"], force=args.force)
     out.mkdir(parents=True, exist_ok=True)
     rows, profiles = [], {}
-    for folder in map(pathlib.Path, args.rungs):
-        path = folder / "result.json"
+    for arg in args.rungs:
+        folder, _, label = arg.partition("=")
+        path = pathlib.Path(folder) / "result.json"
+        label = label or path.parent.name
         if not path.is_file():
             raise SystemExit(f"{path}: no result.json (run the ladder on this rung first)")
-        profiles[folder.name] = prof = profile(json.loads(path.read_text()), args.smooth)
+        profiles[label] = prof = profile(json.loads(path.read_text()), args.smooth)
         for name, p in prof.items():
-            rows.append(f"| {folder.name} | {name} | {p['corr']:+.2f} | "
+            rows.append(f"| {label} | {name} | {p['corr']:+.2f} | "
                         f"{p['pred_range'][0]:.3f}-{p['pred_range'][1]:.3f} | "
                         f"{p['true_range'][0]:.3f}-{p['true_range'][1]:.3f} | "
                         f"{p['final_along_r']:+.2f} | {p['final_centroid_r']:.2f} |")
