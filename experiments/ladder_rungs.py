@@ -332,6 +332,10 @@ RUNGS: tuple[Rung, ...] = (
     # alone, guarded: the spread of six seeds)
     Rung("follow_speed_last_ens6_guards", FOLLOW_SPEED, guards=True, reuse="follow_speed_last",
          members=6, checkpoint="last"),
+    # the room recipe's seeds 0-5 as an ensemble, guarded (each member also scored alone,
+    # guarded), to set against the speed-noise recipe's six
+    Rung("follow_room_last_ens6_guards", FOLLOW_ROOM, guards=True, reuse="follow_room_last",
+         members=6, checkpoint="last"),
     # the same six as a committee (every step their mean, guarded, fed back to all), guarded
     # and alone
     Rung("follow_speed_last_committee6_guards", FOLLOW_SPEED, guards=True,
