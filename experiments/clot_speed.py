@@ -13,7 +13,10 @@ rules that move the clot along its true path and only choose its speed:
 - **start speed**: the speed of the frame the rollout starts from, kept for every step (what a
   step that carries its input speed over does, e.g. the vessel-following prior alone);
 - **others' mean speed**: the mean speed per frame over the rollout windows of the *other*
-  simulations (leave one out), for every step.
+  simulations (leave one out), for every step;
+- **clearance fit**: a speed from the clearance where the rule's clot stands on the true track,
+  by a straight line fitted to the other simulations' (clearance, speed) pairs of every step
+  (leave one out); the best a step can do that sets its speed from the local room alone.
 
 The error along the track is ``|rule's travel - true travel|``: the distance between the true
 final centroid and where the rule's clot stands on the true track. It is a lower bound of a
@@ -87,6 +90,24 @@ def simulation_record(positions: np.ndarray, node_type: np.ndarray, skip: int, r
             "travel": float(window[1:].sum()), "steps": int(len(window) - 1)}
 
 
+def clearance_rule(sim: dict, others: list[dict]) -> float:
+    """Signed final error along the track (r; + ahead) of the clearance-fit rule on ``sim``:
+    a line ``speed = a + b * clearance`` fitted to every step of ``others``, applied in a closed
+    loop (each step's clearance read, by interpolation over arc length, where the rule's clot
+    stands on ``sim``'s true track). NaN when the others' clearances do not vary."""
+    x = np.concatenate([np.asarray(o["clearance"]) for o in others]) if others else np.zeros(0)
+    if len(x) < 2 or np.ptp(x) == 0:
+        return float("nan")
+    y = np.concatenate([np.asarray(o["speed"]) for o in others])
+    slope, intercept = np.polyfit(x, y, 1)
+    speed, clear = np.asarray(sim["speed"]), np.asarray(sim["clearance"])
+    arc = np.concatenate([[0.0], np.cumsum(speed)[:-1]])  # the true clot's travel at each step
+    travel = 0.0
+    for _ in range(len(speed)):
+        travel += intercept + slope * float(np.interp(travel, arc, clear))
+    return float(travel - sim["travel"])
+
+
 def _corr(x: np.ndarray, y: np.ndarray) -> float:
     return float(np.corrcoef(x, y)[0, 1]) if np.std(x) > 0 and np.std(y) > 0 else float("nan")
 
@@ -104,6 +125,7 @@ def summarise(sims: dict[str, dict]) -> tuple[list[list], dict]:
             float(speed.min()), float(speed.max()),
             abs(s["start_speed"] * s["steps"] - s["travel"]),
             abs(mean_others * s["steps"] - s["travel"]),
+            abs(clearance_rule(s, others)),
             _corr(speed, np.asarray(s["clearance"])),
             _corr(speed, np.asarray(s["curvature"])),
         ])
@@ -164,7 +186,8 @@ def main(argv: list[str] | None = None) -> int:
     table = markdown_table(
         ["simulation", "steps", "true travel (r)", "start speed (r/frame)",
          "mean speed", "min speed", "max speed", "start speed kept: error along (r)",
-         "others' mean speed: error along (r)", "corr(speed, clearance)",
+         "others' mean speed: error along (r)", "clearance fit: error along (r)",
+         "corr(speed, clearance)",
          "corr(speed, curvature)"], rows)
     env = environment()
     out.mkdir(parents=True, exist_ok=True)

@@ -47,6 +47,29 @@ def test_speed_travel_and_the_start_speed_rule_on_a_known_motion():
         m.simulation_record(pos[:skip + 1], nt, skip, r=1.0, smooth=1)
 
 
+def test_clearance_rule_is_exact_when_speed_is_a_line_of_clearance():
+    """Speeds that are exactly 0.1 + 0.2 * clearance in every simulation: the fit recovers the
+    line and the closed loop along the true track ends where the true clot does; a rule fitted
+    to a slower simulation ends behind; clearances that never vary give NaN."""
+    m = _module()
+
+    def sim(clear, offset=0.0):
+        speed = 0.1 + offset + 0.2 * np.asarray(clear)
+        return {"speed": speed.tolist(), "clearance": list(clear), "travel": float(speed.sum()),
+                "steps": len(clear), "start_speed": float(speed[0]),
+                "curvature": [0.0] * len(clear)}
+
+    a, b = sim(np.linspace(0.8, 1.2, 30)), sim(np.linspace(1.1, 0.7, 30))
+    assert m.clearance_rule(a, [b]) == pytest.approx(0.0, abs=1e-9)
+    assert m.clearance_rule(b, [a]) == pytest.approx(0.0, abs=1e-9)
+    slower = sim(np.linspace(1.0, 0.6, 30), offset=-0.05)
+    assert m.clearance_rule(a, [slower]) < -1.0  # 0.05 r per frame slower over 30 steps
+    flat = sim(np.full(30, 0.9))
+    assert np.isnan(m.clearance_rule(a, [flat]))
+    rows, _ = m.summarise({"a": a, "b": b})
+    assert rows[0][9] == pytest.approx(0.0, abs=1e-9)
+
+
 def test_script_writes_its_outputs_and_refuses_to_replace_them(tmp_path):
     m = _module()
     data = write_dataset(tmp_path / "acc.h5", accelerating_sims(n_sims=2, n_nodes=40,
