@@ -13,7 +13,13 @@ last two frames alone (no model, no training):
 - ``axis speed, rigid``: the clot moves as one body, ``v <- |V| sign(V . T) T`` with ``V`` the
   clot's mean velocity and ``T`` the mean of the nodes' axes (signed along ``V``);
 - ``axis part only``: ``v_i <- (v_i . t_i) t_i`` (the speed across the vessel dropped, so the
-  clot slows in bends).
+  clot slows in bends);
+- with ``--room-fit SIMS``, two rules that set the speed from the room instead of keeping it:
+  ``room speed, per node`` (``v_i <- s sign(v_i . t_i) t_i``) and ``room speed, rigid``
+  (``v <- s sign(V . T) T``), where ``s = a + b * clearance`` is a straight line fitted to
+  every step of the simulations SIMS (:func:`clot_speed.simulation_record`: the true clot
+  centroid's speed per frame against its distance to the nearest wall node, both in vessel
+  radii), the clearance measured from the rollout's own clot centroid at every step.
 
 Each is rolled out alone and with the physics guards (containment, coherence) of
 :func:`thrombojax.simulator.guard_set.build_guards`, from the dataset's ``skip_frames`` to the
@@ -26,6 +32,7 @@ from __future__ import annotations
 import argparse
 import json
 import pathlib
+import sys
 
 import jax
 import jax.numpy as jnp
@@ -40,41 +47,63 @@ from thrombojax.graph.vessel_axis import axis_speed_velocity, vessel_axis
 from thrombojax.io.hdf5 import open_dataset
 from thrombojax.io.outputs import atomic_write_text, check_targets
 from thrombojax.simulator.guard_set import build_guards
-from thrombojax.types import clot_mask
+from thrombojax.types import NodeType, clot_mask
 
 RULES = ("constant velocity", "axis speed, per node", "axis speed, rigid", "axis part only")
+ROOM_RULES = ("room speed, per node", "room speed, rigid")
 
 
-def next_velocity(rule: str, v: jax.Array, t: jax.Array, clot: jax.Array) -> jax.Array:
-    """The velocity of the next step under ``rule`` (:data:`RULES`), on clot rows only."""
+def next_velocity(rule: str, v: jax.Array, t: jax.Array, clot: jax.Array,
+                  speed: jax.Array | None = None) -> jax.Array:
+    """The velocity of the next step under ``rule`` (:data:`RULES`, :data:`ROOM_RULES`: those
+    move at ``speed``, a scalar in the positions' units per frame), on clot rows only."""
     if rule == "constant velocity":
         return v
     along = jnp.sum(v * t, axis=-1, keepdims=True)
+    w = clot[:, None].astype(v.dtype)
+    big_v = jnp.sum(w * v, axis=0) / jnp.maximum(w.sum(), 1.0)
+    if rule in ROOM_RULES and speed is None:
+        raise ValueError(f"rule {rule!r} needs a speed")
     if rule == "axis part only":
         new = along * t
     elif rule == "axis speed, per node":
         new = axis_speed_velocity(v, t)
-    elif rule == "axis speed, rigid":
-        w = clot[:, None].astype(v.dtype)
-        big_v = jnp.sum(w * v, axis=0) / jnp.maximum(w.sum(), 1.0)
+    elif rule == "room speed, per node":
+        new = speed * jnp.where(along < 0, -t, t)
+    elif rule in ("axis speed, rigid", "room speed, rigid"):
         signed_t = jnp.where(jnp.sum(t * big_v, axis=-1, keepdims=True) < 0, -t, t)
         big_t = jnp.sum(w * signed_t, axis=0)
         big_t = big_t / jnp.maximum(jnp.linalg.norm(big_t), 1e-12)
-        new = jnp.broadcast_to(jnp.linalg.norm(big_v) * big_t, v.shape)
+        size = jnp.linalg.norm(big_v) if rule == "axis speed, rigid" else speed
+        new = jnp.broadcast_to(size * big_t, v.shape)
     else:
-        raise ValueError(f"unknown rule {rule!r}; one of {RULES}")
+        raise ValueError(f"unknown rule {rule!r}; one of {RULES + ROOM_RULES}")
     return jnp.where(clot[:, None], new, 0.0)
 
 
-def roll(rule: str, x_prev, x0, node_type, n_steps: int, axis_radius: float, guards=None):
-    """``[n_steps, N, 3]``: the rule's rollout from ``(x_prev, x0)`` (guarded if given)."""
+def room_speed(x: jax.Array, clot: jax.Array, wall: jax.Array, line: tuple[float, float],
+               radius: float) -> jax.Array:
+    """``a + b * clearance`` in the positions' units per frame: ``line = (a, b)`` in vessel radii
+    (speed per frame against clearance), the clearance the distance from the clot centroid of
+    ``x [N, 3]`` to the nearest of the wall nodes ``wall [W, 3]``."""
+    w = clot[:, None].astype(x.dtype)
+    centroid = jnp.sum(w * x, axis=0) / jnp.maximum(w.sum(), 1.0)
+    clearance = jnp.sqrt(jnp.min(jnp.sum((wall - centroid) ** 2, axis=-1)))
+    return radius * line[0] + line[1] * clearance
+
+
+def roll(rule: str, x_prev, x0, node_type, n_steps: int, axis_radius: float, guards=None,
+         room=None):
+    """``[n_steps, N, 3]``: the rule's rollout from ``(x_prev, x0)`` (guarded if given);
+    ``room = (wall [W, 3], (a, b), radius)`` for the :data:`ROOM_RULES`."""
     mask = jnp.ones(node_type.shape[0], bool)
     clot = clot_mask(node_type, mask)
 
     def body(carry, _):
         prev, cur = carry
         t = vessel_axis(cur, node_type, mask, radius=axis_radius)
-        nxt = cur + next_velocity(rule, cur - prev, t, clot)
+        speed = None if room is None else room_speed(cur, clot, room[0], room[1], room[2])
+        nxt = cur + next_velocity(rule, cur - prev, t, clot, speed)
         if guards is not None:
             nxt = guards.apply(nxt)[0]
         return (cur, nxt), nxt
@@ -85,7 +114,25 @@ def roll(rule: str, x_prev, x0, node_type, n_steps: int, axis_radius: float, gua
 _roll = jax.jit(roll, static_argnums=(0, 4, 5))  # one compilation per rule, length, guards
 
 
-def measure(ds, name: str, n_nodes: int | None, axis_radius_r: float) -> dict:
+def fit_room_line(ds, sims: list[str]) -> tuple[float, float]:
+    """``(a, b)``: the least-squares line speed = a + b * clearance (vessel radii per frame
+    against vessel radii) over every step of the rollout windows of ``sims``."""
+    sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))  # experiments/
+    from clot_speed import simulation_record
+
+    skip, r = max(study.skip_frames(ds), 1), vessel_radius(ds)
+    recs = [simulation_record(np.asarray(ds.positions(n)), np.asarray(ds.node_type(n)), skip, r,
+                              smooth=3) for n in sims]
+    x = np.concatenate([rec["clearance"] for rec in recs])
+    y = np.concatenate([rec["speed"] for rec in recs])
+    if np.ptp(x) == 0:
+        raise ValueError(f"the clearance never varies over {sims}: no line to fit")
+    b, a = np.polyfit(x, y, 1)
+    return float(a), float(b)
+
+
+def measure(ds, name: str, n_nodes: int | None, axis_radius_r: float,
+            line: tuple[float, float] | None = None) -> dict:
     """Every rule alone and guarded on one simulation: MSE@full (r^2) and its ratio to CV,
     final centroid error (r), max fraction of the clot outside."""
     full = np.asarray(ds.positions(name), np.float32)
@@ -101,11 +148,14 @@ def measure(ds, name: str, n_nodes: int | None, axis_radius_r: float) -> dict:
     guards = build_guards(full[0], full_nt, pos[skip], nt, radius=r,
                           wall_cells=ds[name].wall_cells)
     rows = {}
-    for rule in RULES:
+    room = (None if line is None else
+            (jnp.asarray(full[0][full_nt == NodeType.VESSEL]), tuple(line), float(r)))
+    for rule in RULES + (ROOM_RULES if line is not None else ()):
         for guarded in (False, True):
             pred = np.asarray(_roll(
                 rule, jnp.asarray(pos[skip - 1]), jnp.asarray(pos[skip]), jnp.asarray(nt), n,
-                axis_radius_r * r, guards if guarded else None))
+                axis_radius_r * r, guards if guarded else None,
+                room if rule in ROOM_RULES else None))
             rows[f"{rule}{', guarded' if guarded else ''}"] = {
                 "mse_full": float(mse_per_step(pred, true, clot).mean()) / r**2,
                 "final_centroid_r": float(centroid_error(pred, true, clot)[-1]) / r,
@@ -125,13 +175,24 @@ def main(argv: list[str] | None = None) -> int:
                         help="a fixed seeded subset of this many nodes (default: all)")
     parser.add_argument("--axis-radius", type=float, default=2.0,
                         help="width of the axis' wall-normal weights, vessel radii (default 2)")
+    parser.add_argument("--room-fit", default=None,
+                        help="simulations (comma-separated; not those of --sims) to fit the "
+                        "room rules' speed-against-clearance line on; without it, no room rule")
     parser.add_argument("--out", required=True, help="output folder (table.md, JSON)")
     parser.add_argument("--force", action="store_true", help="replace existing outputs")
     args = parser.parse_args(argv)
     out = pathlib.Path(args.out)
     check_targets([out / "table.md", out / "follow_axis.json"], force=args.force)
     ds = open_dataset(args.dataset)
-    per_sim = {name: measure(ds, name, args.nodes, args.axis_radius)
+    line = None
+    if args.room_fit:
+        fit = args.room_fit.split(",")
+        if set(fit) & set(args.sims.split(",")):
+            parser.error("--room-fit must not name a simulation of --sims (it is scored)")
+        line = fit_room_line(ds, fit)
+        print(f"room line fitted on {fit}: speed = {line[0]:.4f} + {line[1]:.4f} * clearance "
+              "(r per frame, r)")
+    per_sim = {name: measure(ds, name, args.nodes, args.axis_radius, line)
                for name in args.sims.split(",")}
     labels = list(next(iter(per_sim.values())))
     mean = {k: {m: float(np.mean([s[k][m] for s in per_sim.values()]))
@@ -147,8 +208,12 @@ def main(argv: list[str] | None = None) -> int:
                               "final centroid error (r)", "max clot outside"], rows)
             + "\n\n" + "\n".join(f"- {k}: {v}" for k, v in env.items()) + "\n")
     out.mkdir(parents=True, exist_ok=True)
+    if line is not None:
+        text = text.replace("\n\n- ", f"\n\nRoom rules: speed = {line[0]:.4f} + {line[1]:.4f} "
+                            f"* clearance (r per frame, r), fitted on {args.room_fit}.\n\n- ", 1)
     atomic_write_text(out / "follow_axis.json", json.dumps(
-        {"environment": env, "simulations": per_sim, "mean": mean}, indent=1))
+        {"environment": env, "simulations": per_sim, "mean": mean, "room_line": line,
+         "room_fit": args.room_fit}, indent=1))
     atomic_write_text(out / "table.md", text)
     print(text)
     return 0

@@ -119,3 +119,47 @@ def test_the_follow_axis_experiment_rules_and_script(tmp_path):
     assert "axis speed, per node, guarded" in text and "- jax:" in text
     with pytest.raises(Exception, match="exists|force"):
         module.main(["--dataset", str(data), "--sims", name, "--out", str(out)])
+
+
+def test_the_room_rules_move_at_the_fitted_speed_from_the_clearance(tmp_path):
+    """experiments/follow_axis.py's room rules: the speed is a + b * (centroid to nearest wall
+    node), per node along each node's signed axis, rigid along the clot's mean axis; a room
+    rule without a speed is refused; --room-fit adds the rules, fitted on other simulations,
+    and refuses a scored simulation."""
+    import importlib.util
+    import pathlib
+
+    from thrombojax.io.hdf5 import open_dataset
+    from thrombojax.sim.generate import generate_dataset
+
+    root = pathlib.Path(__file__).resolve().parents[1]
+    spec = importlib.util.spec_from_file_location("follow_axis_room",
+                                                  root / "experiments" / "follow_axis.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    x = jnp.asarray([[0.0, 0.0, 0.0], [2.0, 0.0, 0.0], [9.0, 9.0, 9.0]])
+    clot = jnp.asarray([True, True, False])
+    wall = jnp.asarray([[1.0, 3.0, 0.0], [1.0, -5.0, 0.0]])  # centroid (1, 0, 0): clearance 3
+    speed = module.room_speed(x, clot, wall, (0.2, 0.1), radius=2.0)
+    assert float(speed) == pytest.approx(2.0 * 0.2 + 0.1 * 3.0)
+    t = jnp.asarray([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [1.0, 0.0, 0.0]])
+    v = jnp.asarray([[-0.3, 0.4, 0.0], [0.1, 0.2, 0.0], [0.5, 0.5, 0.5]])
+    per_node = np.asarray(module.next_velocity("room speed, per node", v, t, clot, speed))
+    np.testing.assert_allclose(per_node, [[-0.7, 0, 0], [0, 0.7, 0], [0, 0, 0]], atol=1e-6)
+    rigid = np.asarray(module.next_velocity("room speed, rigid", v, t, clot, speed))
+    np.testing.assert_allclose(rigid[0], rigid[1])
+    np.testing.assert_allclose(np.linalg.norm(rigid[0]), 0.7, rtol=1e-5)
+    assert not rigid[2].any()
+    with pytest.raises(ValueError, match="needs a speed"):
+        module.next_velocity("room speed, rigid", v, t, clot)
+    data = generate_dataset("clotentry-tiny", tmp_path / "ce.h5", n_sims=2, seed=3,
+                            progress=False)
+    fit, scored = open_dataset(data).names
+    out = tmp_path / "room"
+    assert module.main(["--dataset", str(data), "--sims", scored, "--room-fit", fit,
+                        "--out", str(out)]) == 0
+    text = (out / "table.md").read_text()
+    assert "room speed, rigid, guarded" in text and f"fitted on {fit}" in text
+    with pytest.raises(SystemExit):
+        module.main(["--dataset", str(data), "--sims", scored, "--room-fit", scored,
+                     "--out", str(tmp_path / "refused")])
