@@ -332,6 +332,9 @@ RUNGS: tuple[Rung, ...] = (
     # alone, guarded: the spread of six seeds)
     Rung("follow_speed_last_ens6_guards", FOLLOW_SPEED, guards=True, reuse="follow_speed_last",
          members=6, checkpoint="last"),
+    # seeds 0-11 of the speed-noise recipe as one ensemble, guarded
+    Rung("follow_speed_last_ens12_guards", FOLLOW_SPEED, guards=True,
+         reuse="follow_speed_last", members=12, checkpoint="last"),
     # the room recipe's seeds 0-5 as an ensemble, guarded (each member also scored alone,
     # guarded), to set against the speed-noise recipe's six
     Rung("follow_room_last_ens6_guards", FOLLOW_ROOM, guards=True, reuse="follow_room_last",
