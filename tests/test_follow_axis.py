@@ -86,7 +86,8 @@ def test_cli_trains_with_the_prior_and_the_lateral_hold_and_reloads_them(tmp_pat
 def test_the_follow_axis_experiment_rules_and_script(tmp_path):
     """experiments/follow_axis.py: per node keeps each speed along the axis, rigid moves the
     clot as one body, 'axis part only' drops the speed across; the script writes its table
-    with the environment and refuses to replace it without --force."""
+    with the environment (and the room rules with --room-fit) and refuses to replace it
+    without --force."""
     import importlib.util
     import pathlib
 
@@ -110,27 +111,29 @@ def test_the_follow_axis_experiment_rules_and_script(tmp_path):
                                rtol=1e-5)
     part = np.asarray(module.next_velocity("axis part only", v, t, clot))
     np.testing.assert_allclose(part[:2], [[-0.3, 0, 0], [0, 0.2, 0]], atol=1e-6)
-    data = generate_dataset("clotentry-tiny", tmp_path / "ce.h5", n_sims=1, seed=3,
+    # the script, with the room rules of --room-fit (test below) fitted on the other simulation
+    data = generate_dataset("clotentry-tiny", tmp_path / "ce.h5", n_sims=2, seed=3,
                             progress=False)
-    name = open_dataset(data).names[0]
+    fit, name = open_dataset(data).names
     out = tmp_path / "follow"
-    assert module.main(["--dataset", str(data), "--sims", name, "--out", str(out)]) == 0
+    argv = ["--dataset", str(data), "--sims", name, "--room-fit", fit, "--out", str(out)]
+    assert module.main(argv) == 0
     text = (out / "table.md").read_text()
     assert "axis speed, per node, guarded" in text and "- jax:" in text
+    assert "room speed, rigid, guarded" in text and f"fitted on {fit}" in text
     with pytest.raises(Exception, match="exists|force"):
-        module.main(["--dataset", str(data), "--sims", name, "--out", str(out)])
+        module.main(argv)
+    with pytest.raises(SystemExit):  # a scored simulation is not fitted on
+        module.main(["--dataset", str(data), "--sims", name, "--room-fit", name,
+                     "--out", str(tmp_path / "refused")])
 
 
-def test_the_room_rules_move_at_the_fitted_speed_from_the_clearance(tmp_path):
+def test_the_room_rules_move_at_the_fitted_speed_from_the_clearance():
     """experiments/follow_axis.py's room rules: the speed is a + b * (centroid to nearest wall
     node), per node along each node's signed axis, rigid along the clot's mean axis; a room
-    rule without a speed is refused; --room-fit adds the rules, fitted on other simulations,
-    and refuses a scored simulation."""
+    rule without a speed is refused (the script's --room-fit: the test above)."""
     import importlib.util
     import pathlib
-
-    from thrombojax.io.hdf5 import open_dataset
-    from thrombojax.sim.generate import generate_dataset
 
     root = pathlib.Path(__file__).resolve().parents[1]
     spec = importlib.util.spec_from_file_location("follow_axis_room",
@@ -152,14 +155,3 @@ def test_the_room_rules_move_at_the_fitted_speed_from_the_clearance(tmp_path):
     assert not rigid[2].any()
     with pytest.raises(ValueError, match="needs a speed"):
         module.next_velocity("room speed, rigid", v, t, clot)
-    data = generate_dataset("clotentry-tiny", tmp_path / "ce.h5", n_sims=2, seed=3,
-                            progress=False)
-    fit, scored = open_dataset(data).names
-    out = tmp_path / "room"
-    assert module.main(["--dataset", str(data), "--sims", scored, "--room-fit", fit,
-                        "--out", str(out)]) == 0
-    text = (out / "table.md").read_text()
-    assert "room speed, rigid, guarded" in text and f"fitted on {fit}" in text
-    with pytest.raises(SystemExit):
-        module.main(["--dataset", str(data), "--sims", scored, "--room-fit", scored,
-                     "--out", str(tmp_path / "refused")])
