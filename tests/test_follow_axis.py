@@ -14,6 +14,18 @@ from thrombojax.train.loss import window_loss_terms
 from thrombojax.types import NodeType
 
 
+def _experiment():
+    """``experiments/follow_axis.py`` loaded as a module (it is a script, not a package)."""
+    import importlib.util
+    import pathlib
+
+    path = pathlib.Path(__file__).resolve().parents[1] / "experiments" / "follow_axis.py"
+    spec = importlib.util.spec_from_file_location("follow_axis", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
 def _bent(seed=1):
     """A unit tube bent on a circle of radius 4, clot near its axis at the bend's start."""
     big = 4.0
@@ -88,17 +100,10 @@ def test_the_follow_axis_experiment_rules_and_script(tmp_path):
     clot as one body, 'axis part only' drops the speed across; the script writes its table
     with the environment (and the room rules with --room-fit) and refuses to replace it
     without --force."""
-    import importlib.util
-    import pathlib
-
     from thrombojax.io.hdf5 import open_dataset
     from thrombojax.sim.generate import generate_dataset
 
-    root = pathlib.Path(__file__).resolve().parents[1]
-    spec = importlib.util.spec_from_file_location("follow_axis",
-                                                  root / "experiments" / "follow_axis.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
+    module = _experiment()
     t = jnp.asarray([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [1.0, 0.0, 0.0]])
     v = jnp.asarray([[-0.3, 0.4, 0.0], [0.1, 0.2, 0.0], [0.5, 0.5, 0.5]])
     clot = jnp.asarray([True, True, False])
@@ -132,14 +137,7 @@ def test_the_room_rules_move_at_the_fitted_speed_from_the_clearance():
     """experiments/follow_axis.py's room rules: the speed is a + b * (centroid to nearest wall
     node), per node along each node's signed axis, rigid along the clot's mean axis; a room
     rule without a speed is refused (the script's --room-fit: the test above)."""
-    import importlib.util
-    import pathlib
-
-    root = pathlib.Path(__file__).resolve().parents[1]
-    spec = importlib.util.spec_from_file_location("follow_axis_room",
-                                                  root / "experiments" / "follow_axis.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
+    module = _experiment()
     x = jnp.asarray([[0.0, 0.0, 0.0], [2.0, 0.0, 0.0], [9.0, 9.0, 9.0]])
     clot = jnp.asarray([True, True, False])
     wall = jnp.asarray([[1.0, 3.0, 0.0], [1.0, -5.0, 0.0]])  # centroid (1, 0, 0): clearance 3
