@@ -4,7 +4,10 @@ Cases, as a user runs them (study configs, :func:`thrombojax.models.registry.get
 
 * ``step``: the learned step of a rollout, :func:`thrombojax.simulator.step.make_step` jitted
   (graph from the positions + model + integration in one compiled call, as
-  ``benchmarks/models.py --step``);
+  ``benchmarks/models.py --step``) with :func:`thrombojax.xla_options.jit`, the compiler
+  options thrombojax's rollouts use (as ``forward``; ``rollout`` and ``train`` get them from
+  :data:`~thrombojax.simulator.rollout.rollout_jit` and
+  :func:`~thrombojax.train.step.make_train_step`);
 * ``rollout``: :data:`thrombojax.simulator.rollout.rollout_jit`, the ``lax.scan`` rollout of
   ``--rollout-steps`` steps compiled once;
 * ``forward``: graph + model in one jitted call at full resolution, the graph on the cell grid
@@ -39,6 +42,7 @@ from thrombojax.study import training_defaults
 from thrombojax.train.schedule import make_optimizer, make_schedule
 from thrombojax.train.step import init_state, make_train_step
 from thrombojax.types import TargetStats
+from thrombojax.xla_options import jit as xla_jit
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from peer_common import STATS, Case, Inputs, read_inputs, serve  # noqa: E402
@@ -70,7 +74,7 @@ def _state(inp: Inputs) -> tuple:
 def _step_case(name, model, params, stats, inp, spec) -> Case:
     step = make_step(model)
     state = _state(inp)
-    compiled = jax.jit(step).lower(params, stats, *state).compile()
+    compiled = xla_jit(step, model=name).lower(params, stats, *state).compile()
     jax.block_until_ready(compiled(params, stats, *state))
     return Case(f"{name}|step|{inp.n_nodes}", lambda: jax.block_until_ready(
         compiled(params, stats, *state).positions), repeats=spec["repeats"])
@@ -99,7 +103,7 @@ def _forward_case(name, model, params, stats, inp, spec) -> Case:
             inputs = s.inputs(stats, *st)
             graph = s.build_graph(inputs)
             return model.apply(p, inputs, graph), graph_overflow(graph)
-        compiled[s] = jax.jit(fn)
+        compiled[s] = xla_jit(fn, model=name)
         return compiled[s](params, *state)
 
     _, step = run_checked(run, step, what="forward")  # compiled, warm, grown if it overflowed

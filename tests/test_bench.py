@@ -28,7 +28,8 @@ def test_bench_cli_all_models(tmp_path, capsys):
                  "--out", str(tmp_path), "--quiet"]) == 0
     res = json.loads((tmp_path / "bench.json").read_text())
     env = set(res["environment"])
-    assert {"device", "jax", "flax", "date", "load_avg_1_5_15", "command", "allocator"} <= env
+    assert {"device", "jax", "flax", "date", "load_avg_1_5_15", "command", "allocator",
+            "xla_options"} <= env
     assert "no trained weights" in res["note"]
     assert [(r["model"], r["case"]) for r in res["results"]] == [
         (m, "bendvessel") for m in models]

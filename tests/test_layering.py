@@ -15,7 +15,7 @@ import pytest
 PACKAGE = pathlib.Path(__file__).resolve().parents[1] / "thrombojax"
 
 LAYERS: dict[str, int] = {
-    "types": 0, "errors": 0, "study": 0, "<root>": 0,
+    "types": 0, "errors": 0, "study": 0, "xla_options": 0, "<root>": 0,
     "units": 1,
     "io": 2, "graph": 2,
     "plotting": 3,

@@ -47,6 +47,8 @@ from thrombojax.train.guards import (
 from thrombojax.train.state import TrainedModel, load_trained
 from thrombojax.types import TargetStats, clot_mask
 from thrombojax.units import check_units
+from thrombojax.xla_options import jit as xla_jit
+from thrombojax.xla_options import step_model_name
 
 __all__ = [
     "split_names",
@@ -150,7 +152,7 @@ def simulation_exit_frame(positions: np.ndarray, node_type: np.ndarray,
     return exit_frame(wall, positions, clot_mask(node_type))
 
 
-@functools.partial(jax.jit, static_argnums=0)
+@functools.partial(xla_jit, model_of=step_model_name, static_argnums=0)
 def batched_next(step, params, stats, prev, cur, node_type, mask):
     """Teacher-forced next positions of a batch of windows of one simulation, ``[B, N, 3]``.
 

@@ -34,6 +34,8 @@ from thrombojax.simulator.guard_set import GuardSet
 from thrombojax.simulator.rollout import as_step
 from thrombojax.simulator.step import LearnedStep
 from thrombojax.types import TargetStats, clot_mask
+from thrombojax.xla_options import jit as xla_jit
+from thrombojax.xla_options import step_model_name
 
 __all__ = ["committee_rollout", "committee_jit"]
 
@@ -58,7 +60,8 @@ def _committee_impl(step, params, stats, x0_prev, x0, node_type, mask, guards, n
                            mean_corrections=corrections if guards is not None else None)
 
 
-committee_jit = jax.jit(_committee_impl, static_argnames=("step", "n_steps"))
+committee_jit = xla_jit(_committee_impl, model_of=step_model_name,
+                        static_argnames=("step", "n_steps"))
 """The compiled committee rollout ``(step, params_stack, stats, x0_prev, x0, node_type, mask,
 guards, n_steps) -> EnsembleRollout``; one compilation per (step, M, N, ``n_steps``, guard
 switches)."""

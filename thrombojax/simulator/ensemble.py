@@ -53,6 +53,8 @@ from thrombojax.simulator.guard_set import GuardSet
 from thrombojax.simulator.rollout import as_step, unroll
 from thrombojax.simulator.step import LearnedStep
 from thrombojax.types import TargetStats, clot_mask
+from thrombojax.xla_options import jit as xla_jit
+from thrombojax.xla_options import step_model_name
 
 __all__ = [
     "EnsembleRollout",
@@ -192,8 +194,8 @@ def _ensemble_impl(step, params, stats, x0_prev, x0, node_type, mask, context, n
                            mean_corrections=mean_corrections)
 
 
-ensemble_jit = jax.jit(
-    _ensemble_impl,
+ensemble_jit = xla_jit(
+    _ensemble_impl, model_of=step_model_name,
     static_argnames=("step", "n_steps", "params_batched", "state_batched", "rollout_fn",
                      "member_batch", "guard_mean"),
 )

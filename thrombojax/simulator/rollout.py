@@ -26,6 +26,8 @@ from thrombojax.simulator.grid_step import DEFAULT_MAX_REGROWS, run_checked
 from thrombojax.simulator.guard_set import GuardSet
 from thrombojax.simulator.step import LearnedStep, make_step
 from thrombojax.types import TargetStats
+from thrombojax.xla_options import jit as xla_jit
+from thrombojax.xla_options import step_model_name
 
 __all__ = [
     "unroll",
@@ -124,7 +126,8 @@ def _rollout_impl(step, params, stats, x0_prev, x0, node_type, mask, n_steps, gu
     return positions, corrections, overflow
 
 
-rollout_jit = jax.jit(_rollout_impl, static_argnames=("step", "n_steps"))
+rollout_jit = xla_jit(_rollout_impl, model_of=step_model_name,
+                      static_argnames=("step", "n_steps"))
 """The compiled rollout ``(step, params, stats, x0_prev, x0, node_type, mask, n_steps, guards)
 -> (trajectory [n_steps, n_nodes, 3], corrections {guard: [n_steps, n_nodes]}, overflow [])``;
 ``guards`` is a :class:`~thrombojax.simulator.guard_set.GuardSet` or ``None`` (then

@@ -57,6 +57,7 @@ from thrombojax.train.noise import (
 from thrombojax.train.shape_noise import add_swell_noise
 from thrombojax.train.state import TrainState
 from thrombojax.types import TargetStats
+from thrombojax.xla_options import jit as xla_jit
 
 __all__ = [
     "data_mesh",
@@ -316,7 +317,8 @@ def make_train_step(
         new = TrainState(step=state.step + 1, params=params, opt_state=opt_state)
         return new, metrics
 
-    return jax.jit(step, donate_argnums=(0,) if donate else ())
+    return xla_jit(step, model=getattr(learned.model, "name", None),
+                   donate_argnums=(0,) if donate else ())
 
 
 def make_eval_step(
@@ -334,7 +336,7 @@ def make_eval_step(
         _, metrics = batch_loss(learned, params, stats, batch, None, train=False, k=k)
         return metrics
 
-    return jax.jit(step)
+    return xla_jit(step, model=getattr(learned.model, "name", None))
 
 
 def init_state(
