@@ -135,3 +135,20 @@ def test_models_without_options_compile_with_the_defaults(fresh_options):
     params = step.init(jax.random.key(0), x_prev, x_cur, node_type, mask)
     args = (params, stats, x_prev, x_cur, node_type, mask)
     assert _ynn_in(rollout_jit.lower(step, *args, n_steps=2).compile().as_text())
+
+
+def test_a_rollout_inside_another_jit_compiles_with_the_outer_options(fresh_options):
+    # jax refuses compiler_options on a nested jit (benchmarks/step_inputs.py jits a rollout)
+    model = _tiny()
+    x_prev, x_cur, node_type, mask, stats = rollout_state(40, seed=4)
+    step = make_step(model)
+    params = step.init(jax.random.key(0), x_prev, x_cur, node_type, mask)
+
+    @xla_options.jit(model="mgn")
+    def outer(params, x_prev, x_cur):
+        return rollout_jit(step, params, stats, x_prev, x_cur, node_type, mask, 3)[0]
+
+    nested = np.asarray(outer(params, x_prev, x_cur))
+    alone = np.asarray(rollout_jit(step, params, stats, x_prev, x_cur, node_type, mask, 3)[0])
+    np.testing.assert_allclose(nested, alone, rtol=1e-5, atol=1e-5)
+    assert not _ynn_in(outer.lower(params, x_prev, x_cur).compile().as_text())

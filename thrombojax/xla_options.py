@@ -3,11 +3,12 @@
 Why: on the CPU, XLA (jaxlib 0.10) hands matrix products and many element-wise and reduction
 fusions to the YNNPACK library. MeshGraphNet spends almost all of its time in
 ``[N*K, H] x [H, H]`` products with a small ``H`` (the study's 64), and for it XLA's own
-emitters and Eigen products are faster: its rollout step at 2,048 nodes 0.86x, its training
-step 0.91x / 0.95x at 977 / 2,048 nodes (``benchmarks/cpu_options.py``, same process,
-alternating; ``benchmarks/results/cpu_options_cpu.md``). Erwin's rollout step was 1.10-1.13x
-*slower* without YNNPACK and Transolver changed within noise, so they keep XLA's defaults:
-the options are chosen per model (:data:`MODEL_CPU_OPTIONS`). They change which library
+emitters and Eigen products are faster: its rollout step at 2,048 nodes 0.83-0.86x, its
+training step 0.91-0.99x / 0.95x at 977 / 2,048 nodes over two runs
+(``benchmarks/cpu_options.py``, same process, alternating;
+``benchmarks/results/cpu_options_cpu.md``). Erwin's rollout step was 1.06-1.13x *slower*
+without YNNPACK and Transolver changed within noise, so they keep XLA's defaults: the options
+are chosen per model (:data:`MODEL_CPU_OPTIONS`). They change which library
 multiplies, not what is computed: outputs and gradients agree to float32 rounding
 (``tests/test_xla_options.py``).
 
@@ -80,6 +81,17 @@ def step_model_name(*args, **kwargs) -> str | None:
     return getattr(getattr(step, "model", None), "name", None)
 
 
+def _top_level(args: tuple, kwargs: Mapping | None) -> bool:
+    """Whether a call with these arguments is not inside a trace: jax's trace state is clean
+    (where this jax exposes it), else no tracer is among the arguments."""
+    try:
+        from jax._src.core import trace_state_clean
+    except ImportError:  # a jax without it: look for tracers among the arguments
+        leaves = jax.tree.leaves((args, dict(kwargs or {})))
+        return not any(isinstance(x, jax.core.Tracer) for x in leaves)
+    return bool(trace_state_clean())
+
+
 class _Jit:
     """``jax.jit(fun, **kwargs)`` with the model's :func:`cpu_compiler_options`, one
     ``jax.jit`` per option set, built at its first use."""
@@ -92,7 +104,9 @@ class _Jit:
 
     def _get(self, args: tuple = (), kwargs: Mapping | None = None):
         model = self._model_of(*args, **(kwargs or {})) if self._model_of else self._model
-        options = cpu_compiler_options(model)
+        # inside another jit the options belong to the outer one: jax refuses them on a
+        # nested jit, which is inlined into the outer program anyway
+        options = cpu_compiler_options(model) if _top_level(args, kwargs) else {}
         key = tuple(sorted(options.items()))
         if key not in self._jitted:
             extra = {"compiler_options": options} if options else {}
