@@ -88,7 +88,8 @@ def _top_level(args: tuple, kwargs: Mapping | None) -> bool:
         from jax._src.core import trace_state_clean
     except ImportError:  # a jax without it: look for tracers among the arguments
         leaves = jax.tree.leaves((args, dict(kwargs or {})))
-        return not any(isinstance(x, jax.core.Tracer) for x in leaves)
+        tracer = getattr(jax.core, "Tracer", ())  # (): no tracer type to find
+        return not any(isinstance(x, tracer) for x in leaves)
     return bool(trace_state_clean())
 
 
