@@ -59,7 +59,7 @@ from thrombojax.xla_options import MODEL_CPU_OPTIONS
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from train import synthetic_batch  # noqa: E402  (benchmarks/ is not a package)
 
-__all__ = ["variants", "build_case", "main"]
+__all__ = ["variants", "synthetic_state", "build_case", "report_header", "finish_report", "main"]
 
 NO_YNN = MODEL_CPU_OPTIONS["mgn"]
 STATS = TargetStats(mean=jnp.zeros(3), std=jnp.full(3, 1e-3), velocity_std=jnp.float32(1e-3))
@@ -75,19 +75,40 @@ def variants(extra: bool) -> dict[str, dict]:
     return out
 
 
+def synthetic_state(n: int):
+    """``(host batch, (x_prev, x_cur, node_type, mask))`` of one synthetic sample of ``n``
+    nodes (``benchmarks/train.py``'s bent tube with a clot blob)."""
+    host = synthetic_batch(1, n)
+    frames = host.frames[0]
+    return host, (jnp.asarray(frames[0]), jnp.asarray(frames[1]),
+                  jnp.asarray(host.node_type[0]), jnp.asarray(host.mask[0]))
+
+
+def report_header(script: str, env: dict) -> list[str]:
+    """The report's first lines: the script, the environment and thrombojax's options."""
+    return [f"# {script} on {env['device']}", "", "```", *[f"# {k}: {v}" for k, v in env.items()],
+            f"# thrombojax's options by model: {dict(MODEL_CPU_OPTIONS)}", "```"]
+
+
+def finish_report(out: list[str], path: str | None) -> None:
+    """Append the load at the end, print it, and write the report atomically to ``path``."""
+    out += ["", f"load (1, 5, 15 min) at the end: {[round(x, 2) for x in os.getloadavg()]}"]
+    print(out[-1])
+    if path:
+        atomic_write_text(path, "\n".join(out) + "\n")
+
+
 def build_case(model_name: str, case: str, n: int, options: dict, tiny: bool = False):
     """``(call, output)``: a compiled, warm call of one case under ``options`` (``tiny``: the
     model's tiny config, for tests); ``output`` maps the call's result to the array compared
     between variants."""
     model = create_model(model_name, get_config(model_name, tiny=tiny))
-    host = synthetic_batch(1, n)
-    frames = host.frames[0]
-    state = (jnp.asarray(frames[0]), jnp.asarray(frames[1]), jnp.asarray(host.node_type[0]),
-             jnp.asarray(host.mask[0]))
+    host, state = synthetic_state(n)
     if case == "step":
         step = make_step(model)
         if n >= AUTO_GRID_MIN_NODES:
-            step = allocate_grid(step, np.asarray(frames[:2]), np.asarray(host.node_type[0]))
+            step = allocate_grid(step, np.asarray(host.frames[0, :2]),
+                                 np.asarray(host.node_type[0]))
         params = step.init(jax.random.key(0), *state)
         fn = jax.jit(step, compiler_options=options or None)
         compiled = fn.lower(params, STATS, *state).compile()
@@ -187,16 +208,10 @@ def main(argv: list[str] | None = None) -> None:
     if jax.default_backend() != "cpu":
         parser.error("this benchmark compares CPU compiler options; the default backend is "
                      f"{jax.default_backend()}")
-    env = environment()
-    out = [f"# benchmarks/cpu_options.py on {env['device']}", "", "```"]
-    out += [f"# {k}: {v}" for k, v in env.items()]
-    out += [f"# thrombojax's options by model: {dict(MODEL_CPU_OPTIONS)}", "```"]
+    out = report_header("benchmarks/cpu_options.py", environment())
     print("\n".join(out), flush=True)
     _run(args, out)
-    out += ["", f"load (1, 5, 15 min) at the end: {[round(x, 2) for x in os.getloadavg()]}"]
-    print(out[-1])
-    if args.out:
-        atomic_write_text(args.out, "\n".join(out) + "\n")
+    finish_report(out, args.out)
 
 
 if __name__ == "__main__":

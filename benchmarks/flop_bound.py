@@ -30,15 +30,13 @@ import jax.numpy as jnp
 
 from thrombojax.cli.allocator import reexec_script_with_tcmalloc
 from thrombojax.eval.tables import environment
-from thrombojax.io.outputs import atomic_write_text
 from thrombojax.models import create_model, get_config
 from thrombojax.simulator.step import make_step
-from thrombojax.xla_options import MODEL_CPU_OPTIONS, cpu_compiler_options
+from thrombojax.xla_options import cpu_compiler_options
 from thrombojax.xla_options import jit as xla_jit
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from cpu_options import STATS  # noqa: E402  (benchmarks/ is not a package)
-from train import synthetic_batch  # noqa: E402
+from cpu_options import STATS, finish_report, report_header, synthetic_state  # noqa: E402
 
 __all__ = ["step_flops", "dense_rate", "main"]
 
@@ -56,10 +54,7 @@ def _median_ms(fn, calls: int) -> float:
 def step_flops(model_name: str, n: int, calls: int, tiny: bool = False) -> dict:
     """GFLOP of the compiled rollout step and its median time (ms), thrombojax's options."""
     model = create_model(model_name, get_config(model_name, tiny=tiny))
-    host = synthetic_batch(1, n)
-    frames = host.frames[0]
-    state = (jnp.asarray(frames[0]), jnp.asarray(frames[1]), jnp.asarray(host.node_type[0]),
-             jnp.asarray(host.mask[0]))
+    _, state = synthetic_state(n)
     step = make_step(model)
     params = step.init(jax.random.key(0), *state)
     compiled = xla_jit(step, model=model_name).lower(params, STATS, *state).compile()
@@ -91,11 +86,8 @@ def main(argv: list[str] | None = None) -> None:
     args = parser.parse_args(argv)
     if args.out and os.path.exists(args.out) and not args.force:
         parser.error(f"{args.out} exists; pass --force to replace it")
-    env = environment()
-    out = [f"# benchmarks/flop_bound.py on {env['device']}", "", "```",
-           *[f"# {k}: {v}" for k, v in env.items()],
-           f"# thrombojax's options by model: {dict(MODEL_CPU_OPTIONS)}", "```", "",
-           "| model | nodes | step GFLOP (XLA count) | step ms (median) | step GFLOP/s | "
+    out = report_header("benchmarks/flop_bound.py", environment())
+    out += ["", "| model | nodes | step GFLOP (XLA count) | step ms (median) | step GFLOP/s | "
            "dense [E, H] x [H, H] GFLOP/s: XLA defaults / thrombojax's options | "
            "floor ms at the better dense rate | step / floor |",
            "|---|---|---|---|---|---|---|---|"]
@@ -111,10 +103,7 @@ def main(argv: list[str] | None = None) -> None:
                        f"{s['gflop'] / s['ms'] * 1e3:.3g} | {rates[0]:.3g} / {rates[1]:.3g} | "
                        f"{floor:.4g} | {s['ms'] / floor:.2f} |")
             print(out[-1], flush=True)
-    out += ["", f"load (1, 5, 15 min) at the end: {[round(x, 2) for x in os.getloadavg()]}"]
-    print(out[-1])
-    if args.out:
-        atomic_write_text(args.out, "\n".join(out) + "\n")
+    finish_report(out, args.out)
 
 
 if __name__ == "__main__":

@@ -32,6 +32,11 @@ from typing import Any
 
 import jax
 
+try:  # whether a call is inside a trace (jax >= 0.4.36); else tracers among the arguments tell
+    from jax._src.core import trace_state_clean as _trace_state_clean
+except ImportError:
+    _trace_state_clean = None
+
 __all__ = ["MODEL_CPU_OPTIONS", "OPT_OUT", "cpu_compiler_options", "step_model_name", "jit"]
 
 MODEL_CPU_OPTIONS: Mapping[str, Mapping[str, str]] = {
@@ -84,13 +89,11 @@ def step_model_name(*args, **kwargs) -> str | None:
 def _top_level(args: tuple, kwargs: Mapping | None) -> bool:
     """Whether a call with these arguments is not inside a trace: jax's trace state is clean
     (where this jax exposes it), else no tracer is among the arguments."""
-    try:
-        from jax._src.core import trace_state_clean
-    except ImportError:  # a jax without it: look for tracers among the arguments
-        leaves = jax.tree.leaves((args, dict(kwargs or {})))
-        tracer = getattr(jax.core, "Tracer", ())  # (): no tracer type to find
-        return not any(isinstance(x, tracer) for x in leaves)
-    return bool(trace_state_clean())
+    if _trace_state_clean is not None:
+        return bool(_trace_state_clean())
+    leaves = jax.tree.leaves((args, dict(kwargs or {})))
+    tracer = getattr(jax.core, "Tracer", ())  # (): no tracer type to find
+    return not any(isinstance(x, tracer) for x in leaves)
 
 
 class _Jit:
