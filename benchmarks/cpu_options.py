@@ -54,7 +54,7 @@ from thrombojax.study import training_defaults
 from thrombojax.train.schedule import make_optimizer, make_schedule
 from thrombojax.train.step import init_state, make_train_step
 from thrombojax.types import TargetStats
-from thrombojax.xla_options import MODEL_CPU_OPTIONS
+from thrombojax.xla_options import MODEL_CPU_OPTIONS, TRAIN_CPU_OPTIONS
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from train import synthetic_batch  # noqa: E402  (benchmarks/ is not a package)
@@ -87,7 +87,8 @@ def synthetic_state(n: int):
 def report_header(script: str, env: dict) -> list[str]:
     """The report's first lines: the script, the environment and thrombojax's options."""
     return [f"# {script} on {env['device']}", "", "```", *[f"# {k}: {v}" for k, v in env.items()],
-            f"# thrombojax's options by model: {dict(MODEL_CPU_OPTIONS)}", "```"]
+            f"# thrombojax's options by model: {dict(MODEL_CPU_OPTIONS)}",
+            f"# and in training steps only: {dict(TRAIN_CPU_OPTIONS)}", "```"]
 
 
 def finish_report(out: list[str], path: str | None) -> None:

@@ -15,7 +15,7 @@ from thrombojax.models.registry import create_model, get_config
 from thrombojax.simulator.rollout import _rollout_impl, rollout_jit
 from thrombojax.simulator.step import make_step
 from thrombojax.train.schedule import make_optimizer, make_schedule
-from thrombojax.train.step import init_state, make_train_step
+from thrombojax.train.step import init_state, make_eval_step, make_train_step
 from thrombojax.types import TargetStats
 
 YNN = "xla_cpu_experimental_ynn_fusion_type"
@@ -42,8 +42,11 @@ def test_cpu_gets_the_options_of_the_model(fresh_options, monkeypatch):
     monkeypatch.delenv(xla_options.OPT_OUT, raising=False)
     assert jax.default_backend() == "cpu"
     assert xla_options.cpu_compiler_options("mgn") == {YNN: ""}
+    assert xla_options.cpu_compiler_options("mgn", train=True) == {YNN: ""}
     for other in ("transolver", "erwin", "constant_velocity", None):
         assert xla_options.cpu_compiler_options(other) == {}
+    assert xla_options.cpu_compiler_options("erwin", train=True) == {YNN: ""}  # training only
+    assert xla_options.cpu_compiler_options("transolver", train=True) == {}
     monkeypatch.setenv(xla_options.OPT_OUT, "0")
     xla_options.cpu_compiler_options.cache_clear()
     assert xla_options.cpu_compiler_options("mgn") == {}
@@ -113,6 +116,27 @@ def test_train_step_equals_the_default_compilation(fresh_options):
         s_plain, m_plain = plain(s_plain, data, jax.random.PRNGKey(i))
         assert_trees_close(m_fast, m_plain)
     assert_trees_close(s_fast.params, s_plain.params)
+
+
+def test_erwin_gets_the_options_in_its_training_step_only(fresh_options):
+    """Erwin's training step compiles without YNNPACK and equals XLA's defaults; its evaluation
+    step (forward only, like its rollouts) keeps them."""
+    model = create_model("erwin", get_config("erwin", tiny=True, radius=0.5))
+    batch = window_batch([synthetic_window(s, n_clot=20, n_pad=4) for s in range(2)])
+    tx = make_optimizer(1e-3)
+    state = init_state(model, tx, jax.random.PRNGKey(0), batch)
+    stats = TargetStats(mean=jax.numpy.zeros(3), std=jax.numpy.full(3, 1e-2))
+    fast = make_train_step(model, tx, stats, donate=False)
+    plain = jax.jit(fast.__wrapped__)
+    data, key = jax.tree.map(jax.numpy.asarray, batch), jax.random.PRNGKey(1)
+    assert _ynn_in(plain.lower(state, data, key).compile().as_text())
+    assert not _ynn_in(fast.lower(state, data, key).compile().as_text())
+    s_fast, m_fast = fast(state, data, key)
+    s_plain, m_plain = plain(state, data, key)
+    assert_trees_close(m_fast, m_plain)
+    assert_trees_close(s_fast.params, s_plain.params)
+    evaluate = make_eval_step(model, stats)
+    assert _ynn_in(evaluate.lower(state.params, data).compile().as_text())
 
 
 def test_rollout_equals_the_default_compilation(fresh_options):

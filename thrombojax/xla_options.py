@@ -7,15 +7,17 @@ emitters and Eigen products are faster: its rollout step at 2,048 nodes 0.83-0.8
 training step 0.91-0.99x / 0.95x at 977 / 2,048 nodes over two runs
 (``benchmarks/cpu_options.py``, same process, alternating;
 ``benchmarks/results/cpu_options_cpu.md``). Erwin's rollout step was 1.06-1.13x *slower*
-without YNNPACK and Transolver changed within noise, so they keep XLA's defaults: the options
-are chosen per model (:data:`MODEL_CPU_OPTIONS`). They change which library
-multiplies, not what is computed: outputs and gradients agree to float32 rounding
-(``tests/test_xla_options.py``).
+without YNNPACK but its training step 0.92-0.97x faster, so Erwin gets the option in its
+training step only (:data:`TRAIN_CPU_OPTIONS`); Transolver changed within noise and keeps XLA's
+defaults: the options are chosen per model and per kind of program (:data:`MODEL_CPU_OPTIONS`).
+They change which library multiplies, not what is computed: outputs and gradients agree to
+float32 rounding (``tests/test_xla_options.py``).
 
 How: :func:`jit` is ``jax.jit`` that adds :func:`cpu_compiler_options` of the model being
 compiled (``compiler_options=``) when the function is called, so the backend is known then and
 nothing is decided at import. The model comes from ``model=`` (a factory that knows it) or
-from the static learned step passed as the first argument or ``step=`` (the rollouts). Off the
+from the static learned step passed as the first argument or ``step=`` (the rollouts);
+``train=True`` marks a training step (forward, backward and optimiser update). Off the
 CPU the options are empty. They are dropped, with one warning, when the installed jaxlib does
 not know them (a trivial function is compiled with them once per process), and an option the
 user set in ``XLA_FLAGS`` is left to the user. Opt out with ``THROMBOJAX_XLA_OPTIONS=0``
@@ -37,14 +39,20 @@ try:  # whether a call is inside a trace (jax >= 0.4.36); else tracers among the
 except ImportError:
     _trace_state_clean = None
 
-__all__ = ["MODEL_CPU_OPTIONS", "OPT_OUT", "cpu_compiler_options", "step_model_name", "jit"]
+__all__ = ["MODEL_CPU_OPTIONS", "TRAIN_CPU_OPTIONS", "OPT_OUT", "cpu_compiler_options",
+           "step_model_name", "jit"]
 
 MODEL_CPU_OPTIONS: Mapping[str, Mapping[str, str]] = {
     # no YNNPACK fusions: dots, element-wise and reductions go to XLA's emitters / Eigen
     "mgn": {"xla_cpu_experimental_ynn_fusion_type": ""},
 }
-"""The options :func:`jit` adds on the CPU, by model name (XLA ``DebugOptions`` names and
-values); a model not named here compiles with XLA's defaults."""
+"""The options :func:`jit` adds on the CPU to every compiled program of a model, by model name
+(XLA ``DebugOptions`` names and values); a model not named here compiles with XLA's defaults."""
+TRAIN_CPU_OPTIONS: Mapping[str, Mapping[str, str]] = {
+    # Erwin's backward pass and update run faster on XLA's emitters, its forward on YNNPACK
+    "erwin": {"xla_cpu_experimental_ynn_fusion_type": ""},
+}
+"""Options added (over :data:`MODEL_CPU_OPTIONS`) to a model's training step only."""
 OPT_OUT: str = "THROMBOJAX_XLA_OPTIONS"
 """Set to ``0`` to compile every model with XLA's defaults."""
 
@@ -58,16 +66,19 @@ def _wanted(environ: Mapping[str, str], options: Mapping[str, str]) -> dict[str,
 
 
 @functools.cache
-def cpu_compiler_options(model: str | None = None) -> dict[str, str]:
+def cpu_compiler_options(model: str | None = None, train: bool = False) -> dict[str, str]:
     """The compiler options of :func:`jit` for ``model`` on the default backend.
 
-    Empty off the CPU, for a model without options (or ``None``) and when opted out. Checked
-    once per process and model: a trivial function is compiled with them; if the installed
-    jaxlib refuses one, a warning names it and no option is used.
+    ``train``: for its training step (adds :data:`TRAIN_CPU_OPTIONS`). Empty off the CPU, for a
+    model without options (or ``None``) and when opted out. Checked once per process, model and
+    kind: a trivial function is compiled with them; if the installed jaxlib refuses one, a
+    warning names it and no option is used.
     """
-    if model not in MODEL_CPU_OPTIONS or jax.default_backend() != "cpu":
+    chosen = {**MODEL_CPU_OPTIONS.get(model, {}),
+              **(TRAIN_CPU_OPTIONS.get(model, {}) if train else {})}
+    if not chosen or jax.default_backend() != "cpu":
         return {}
-    options = _wanted(os.environ, MODEL_CPU_OPTIONS[model])
+    options = _wanted(os.environ, chosen)
     if not options:
         return {}
     try:
@@ -101,8 +112,9 @@ class _Jit:
     ``jax.jit`` per option set, built at its first use."""
 
     def __init__(self, fun: Callable, kwargs: dict, model: str | None,
-                 model_of: Callable[..., str | None] | None):
+                 model_of: Callable[..., str | None] | None, train: bool = False):
         self._fun, self._kwargs, self._model, self._model_of = fun, kwargs, model, model_of
+        self._train = train
         self._jitted: dict[tuple, Any] = {}
         functools.update_wrapper(self, fun)
 
@@ -110,7 +122,8 @@ class _Jit:
         model = self._model_of(*args, **(kwargs or {})) if self._model_of else self._model
         # inside another jit the options belong to the outer one: jax refuses them on a
         # nested jit, which is inlined into the outer program anyway
-        options = cpu_compiler_options(model) if _top_level(args, kwargs) else {}
+        options = (cpu_compiler_options(model, self._train) if _top_level(args, kwargs)
+                   else {})
         key = tuple(sorted(options.items()))
         if key not in self._jitted:
             extra = {"compiler_options": options} if options else {}
@@ -135,7 +148,8 @@ class _Jit:
 
 
 def jit(fun: Callable | None = None, *, model: str | None = None,
-        model_of: Callable[..., str | None] | None = None, **kwargs) -> Any:
+        model_of: Callable[..., str | None] | None = None, train: bool = False,
+        **kwargs) -> Any:
     """``jax.jit`` with thrombojax's CPU compiler options; the other arguments are
     ``jax.jit``'s, also as a decorator (``@functools.partial(jit, static_argnums=0)``).
 
@@ -143,7 +157,8 @@ def jit(fun: Callable | None = None, *, model: str | None = None,
         model: the model name, when the caller knows it (a step factory).
         model_of: else a function of the call's arguments that names it
             (:func:`step_model_name` for functions whose first argument is a learned step).
+        train: the function is a training step (its model's :data:`TRAIN_CPU_OPTIONS` too).
     """
     if fun is None:
-        return functools.partial(jit, model=model, model_of=model_of, **kwargs)
-    return _Jit(fun, kwargs, model, model_of)
+        return functools.partial(jit, model=model, model_of=model_of, train=train, **kwargs)
+    return _Jit(fun, kwargs, model, model_of, train)

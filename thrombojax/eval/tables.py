@@ -15,7 +15,7 @@ import numpy as np
 import optax
 
 from thrombojax import __version__
-from thrombojax.xla_options import MODEL_CPU_OPTIONS, cpu_compiler_options
+from thrombojax.xla_options import MODEL_CPU_OPTIONS, TRAIN_CPU_OPTIONS, cpu_compiler_options
 
 __all__ = ["markdown_table", "environment"]
 
@@ -54,7 +54,9 @@ def environment() -> dict:
         # tcmalloc makes a CPU training step faster (docs/performance.md): timings depend on it
         "allocator": "tcmalloc" if "tcmalloc" in os.environ.get("LD_PRELOAD", "") else "default",
         # and so do the CPU compiler options of the compiled paths (thrombojax/xla_options.py)
-        "xla_options": {m: cpu_compiler_options(m) for m in MODEL_CPU_OPTIONS},
+        "xla_options": {**{m: cpu_compiler_options(m) for m in MODEL_CPU_OPTIONS},
+                        **{f"{m} (train)": cpu_compiler_options(m, train=True)
+                           for m in TRAIN_CPU_OPTIONS}},
         "python": platform.python_version(),
         "platform": platform.platform(),
         "jax": jax.__version__,

@@ -317,7 +317,7 @@ def make_train_step(
         new = TrainState(step=state.step + 1, params=params, opt_state=opt_state)
         return new, metrics
 
-    return xla_jit(step, model=getattr(learned.model, "name", None),
+    return xla_jit(step, model=getattr(learned.model, "name", None), train=True,
                    donate_argnums=(0,) if donate else ())
 
 
