@@ -46,3 +46,18 @@ def test_flop_bound_tiny_run(tmp_path):
     assert ratio == pytest.approx(ms / floor, rel=0.05, abs=0.01)
     with pytest.raises(SystemExit):
         flop_bound.main(["--tiny", "--sizes", "64", "--out", str(md)])
+
+
+def test_gif_bench_times_both_writers_and_finds_the_same_gif(tmp_path):
+    import gif
+
+    md = tmp_path / "gif.md"
+    assert gif.main(["--frames", "3", "--clot", "12", "--wall", "20", "--rounds", "2",
+                     "--out", str(md)]) == 0
+    text = md.read_text()
+    rows = {line.split(" | ")[0][2:]: line for line in text.splitlines()
+            if line.startswith(("| thrombojax |", "| matplotlib |"))}
+    assert set(rows) == {"thrombojax", "matplotlib"}
+    assert "byte-identical: True" in text and "# matplotlib:" in text
+    with pytest.raises(SystemExit):
+        gif.main(["--frames", "3", "--clot", "12", "--wall", "20", "--out", str(md)])

@@ -122,3 +122,33 @@ def test_rollout_summary_figure(tmp_path):
         plot_rollout_summary(true, pred, const, node_type, tmp_path / "x.png", frames=[6])
     with pytest.raises(ValueError, match="shape"):
         plot_rollout_summary(true, pred[:, :5], const, node_type, tmp_path / "x.png")
+
+
+def test_gif_frames_equal_full_redraws_and_matplotlibs_gif(tmp_path):
+    """The static parts are drawn once (thrombojax/plotting/gif.py): every frame still equals
+    a full redraw pixel for pixel, and the GIF equals the one FuncAnimation + PillowWriter
+    write, byte for byte."""
+    from matplotlib import pyplot as plt
+    from matplotlib.animation import FuncAnimation, PillowWriter
+
+    from thrombojax.plotting.gif import render_frames
+
+    pred, true, node_type = _scene()
+    correction = np.zeros(pred.shape)
+    correction[2, 5:8, 1] = 0.1
+    spread = np.abs(pred - true).sum(-1)
+    kwargs = dict(correction=correction, spread=spread, dt=0.5, units="mm")
+    fig, update, n = rollout_figure(pred, true, node_type, **kwargs)
+    frames = render_frames(fig, update, n, update.changing)
+    assert not any(a.get_animated() for a in update.changing)  # left as they were
+    for t in (2, 1, 3, 0):
+        update(t)
+        fig.canvas.draw()
+        full = np.asarray(fig.canvas.buffer_rgba())[..., :3]
+        np.testing.assert_array_equal(np.asarray(frames[t]), full, err_msg=f"frame {t}")
+    plt.close(fig)
+    ours = animate_rollout(pred, true, node_type, tmp_path / "ours.gif", **kwargs)
+    fig, update, n = rollout_figure(pred, true, node_type, **kwargs)
+    FuncAnimation(fig, update, frames=n).save(tmp_path / "mpl.gif", writer=PillowWriter(fps=8))
+    plt.close(fig)
+    assert ours.read_bytes() == (tmp_path / "mpl.gif").read_bytes()

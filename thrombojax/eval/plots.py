@@ -10,7 +10,6 @@ truth at a few frames) is :func:`thrombojax.eval.summary_plot.plot_rollout_summa
 
 from __future__ import annotations
 
-import os
 import pathlib
 
 import matplotlib
@@ -18,10 +17,10 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
-from matplotlib.animation import FuncAnimation, PillowWriter  # noqa: E402
 from matplotlib.ticker import MaxNLocator  # noqa: E402
 
 from thrombojax.errors import ConfigError  # noqa: E402
+from thrombojax.plotting.gif import render_frames, write_gif  # noqa: E402
 from thrombojax.plotting.scene import save_atomic  # noqa: E402
 from thrombojax.plotting.ticks import readable_value_axis  # noqa: E402
 from thrombojax.types import NodeType  # noqa: E402
@@ -163,7 +162,8 @@ def rollout_figure(
     """The figure of :func:`animate_rollout` and its per-frame update function.
 
     Returns:
-        ``(figure, update, n_frames)``; ``update(t)`` draws frame ``t``.
+        ``(figure, update, n_frames)``; ``update(t)`` draws frame ``t``; ``update.changing``
+        lists the artists it changes (the clot scatters, the titles), in drawing order.
     """
     from matplotlib.colors import Normalize
     from matplotlib.lines import Line2D
@@ -244,15 +244,18 @@ def rollout_figure(
         for ax, name, traj in zip(axes, titles, (pred, true, pred), strict=False):
             n_out = int(outside_box(traj[t, clot], lim).sum())
             note = f"{n_out} clot nodes outside the view" if n_out else ""
-            ax.set_title(f"{name}\n{note}", fontsize=10, color="black")
+            ax.title.set_text(f"{name}\n{note}")  # set_title would reset its position
         extra = ""
         if correction is not None:
             extra = f"   guard-corrected nodes: {int((correction[t][clot] > 0).sum())}"
         text.set_text(_frame_text(title, first_frame + t, last, dt, time_unit) + extra)
         return list(arts.values())
 
+    for ax in axes:
+        ax.set_title("", fontsize=10, color="black")
     fig.subplots_adjust(left=0.02, right=0.98, bottom=0.13, top=0.86, wspace=0.05)
     update(0)
+    update.changing = [*arts.values(), *(ax.title for ax in axes), text]
     return fig, update, pred.shape[0]
 
 
@@ -302,18 +305,8 @@ def animate_rollout(
         seed=seed, first_frame=first_frame, dt=dt, units=units, time_unit=time_unit,
         correction=correction, spread=spread)
 
-    anim = FuncAnimation(fig, update, frames=n_frames, blit=False)
-    try:
-        return save_atomic(lambda tmp: _save_gif(anim, tmp, fps), path)
+    try:  # the axes, wall, legend and colour bars drawn once (thrombojax/plotting/gif.py)
+        frames = render_frames(fig, update, n_frames, update.changing)
     finally:
         plt.close(fig)
-
-
-def _save_gif(anim, tmp: pathlib.Path, fps: int) -> None:
-    """Save as GIF under a name PillowWriter accepts (its format comes from the suffix)."""
-    gif = tmp.with_name(tmp.name + ".gif")
-    try:
-        anim.save(gif, writer=PillowWriter(fps=fps))
-        os.replace(gif, tmp)
-    finally:
-        gif.unlink(missing_ok=True)
+    return save_atomic(lambda tmp: write_gif(frames, tmp, fps), path)
