@@ -65,15 +65,20 @@ def _wanted(environ: Mapping[str, str], options: Mapping[str, str]) -> dict[str,
     return {k: v for k, v in options.items() if f"--{k}" not in flags}
 
 
-@functools.cache
 def cpu_compiler_options(model: str | None = None, train: bool = False) -> dict[str, str]:
     """The compiler options of :func:`jit` for ``model`` on the default backend.
 
     ``train``: for its training step (adds :data:`TRAIN_CPU_OPTIONS`). Empty off the CPU, for a
     model without options (or ``None``) and when opted out. Checked once per process, model and
-    kind: a trivial function is compiled with them; if the installed jaxlib refuses one, a
-    warning names it and no option is used.
+    kind, however the arguments are passed: a trivial function is compiled with them; if the
+    installed jaxlib refuses one, a warning names it and no option is used.
+    ``cpu_compiler_options.cache_clear()`` forgets the choices (tests).
     """
+    return _options(model, bool(train))
+
+
+@functools.cache
+def _options(model: str | None, train: bool) -> dict[str, str]:
     chosen = {**MODEL_CPU_OPTIONS.get(model, {}),
               **(TRAIN_CPU_OPTIONS.get(model, {}) if train else {})}
     if not chosen or jax.default_backend() != "cpu":
@@ -86,9 +91,12 @@ def cpu_compiler_options(model: str | None = None, train: bool = False) -> dict[
     except Exception as err:  # an unknown option: XLA's INVALID_ARGUMENT, version-specific
         warnings.warn(f"thrombojax: XLA refused the CPU compiler options {sorted(options)} "
                       f"({str(err).splitlines()[0]}); compiling {model} with XLA's defaults",
-                      RuntimeWarning, stacklevel=2)
+                      RuntimeWarning, stacklevel=3)
         return {}
     return options
+
+
+cpu_compiler_options.cache_clear = _options.cache_clear
 
 
 def step_model_name(*args, **kwargs) -> str | None:
