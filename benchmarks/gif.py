@@ -38,7 +38,7 @@ from thrombojax.eval.tables import environment  # noqa: E402
 from thrombojax.types import NodeType  # noqa: E402
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from cpu_options import finish_report  # noqa: E402  (benchmarks/ is not a package)
+from cpu_options import finish_report, report_header  # noqa: E402  (not a package)
 
 __all__ = ["scene", "matplotlib_gif", "main"]
 
@@ -72,7 +72,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if args.out and Path(args.out).exists():
         parser.error(f"{args.out} exists; remove it first (results are not overwritten)")
-    env = environment()
+    env = {**environment(), "matplotlib": matplotlib.__version__}
     pred, true, node_type = scene(args.frames, args.clot, args.wall)
     times: dict[str, list[float]] = {"thrombojax": [], "matplotlib": []}
     writers = {"thrombojax": lambda p: animate_rollout(pred, true, node_type, p),
@@ -88,9 +88,7 @@ def main(argv: list[str] | None = None) -> int:
             ours, theirs = (Path(tmp) / f"{n}.gif" for n in writers)
             same &= ours.read_bytes() == theirs.read_bytes()
     med = {k: statistics.median(v) for k, v in times.items()}
-    out = [f"# benchmarks/gif.py on {env['device']}", "", "```",
-           *[f"# {k}: {v}" for k, v in env.items()], f"# matplotlib: {matplotlib.__version__}",
-           "```", "",
+    out = [*report_header("benchmarks/gif.py", env), "",
            f"{args.frames} frames, {args.clot} clot + {args.wall} wall nodes, {args.rounds} "
            "rounds alternating; seconds per GIF, median (range):", "",
            "| writer | s per GIF | ms per frame |", "|---|---|---|"]

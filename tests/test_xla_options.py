@@ -98,15 +98,21 @@ def _ynn_in(compiled_text: str) -> bool:
     return "ynn_fusion" in compiled_text
 
 
-def test_train_step_equals_the_default_compilation(fresh_options):
-    model = _tiny()
+def _train_steps(model, tx):
+    """``(state, data, key, stats, fast, plain)``: a two-window batch, the initial state, and
+    the training step compiled by :func:`make_train_step` and by ``jax.jit`` with XLA's
+    defaults."""
     batch = window_batch([synthetic_window(s, n_clot=20, n_pad=4) for s in range(2)])
-    tx = make_optimizer(make_schedule(1e-3, 100, 2))
     state = init_state(model, tx, jax.random.PRNGKey(0), batch)
     stats = TargetStats(mean=jax.numpy.zeros(3), std=jax.numpy.full(3, 1e-2))
     fast = make_train_step(model, tx, stats, donate=False)
-    plain = jax.jit(fast.__wrapped__)
     data, key = jax.tree.map(jax.numpy.asarray, batch), jax.random.PRNGKey(1)
+    return state, data, key, stats, fast, jax.jit(fast.__wrapped__)
+
+
+def test_train_step_equals_the_default_compilation(fresh_options):
+    state, data, key, _, fast, plain = _train_steps(
+        _tiny(), make_optimizer(make_schedule(1e-3, 100, 2)))
     # the options reach the compiler: no YNNPACK fusion in the optimised program
     assert _ynn_in(plain.lower(state, data, key).compile().as_text())
     assert not _ynn_in(fast.lower(state, data, key).compile().as_text())
@@ -122,13 +128,7 @@ def test_erwin_gets_the_options_in_its_training_step_only(fresh_options):
     """Erwin's training step compiles without YNNPACK and equals XLA's defaults; its evaluation
     step (forward only, like its rollouts) keeps them."""
     model = create_model("erwin", get_config("erwin", tiny=True, radius=0.5))
-    batch = window_batch([synthetic_window(s, n_clot=20, n_pad=4) for s in range(2)])
-    tx = make_optimizer(1e-3)
-    state = init_state(model, tx, jax.random.PRNGKey(0), batch)
-    stats = TargetStats(mean=jax.numpy.zeros(3), std=jax.numpy.full(3, 1e-2))
-    fast = make_train_step(model, tx, stats, donate=False)
-    plain = jax.jit(fast.__wrapped__)
-    data, key = jax.tree.map(jax.numpy.asarray, batch), jax.random.PRNGKey(1)
+    state, data, key, stats, fast, plain = _train_steps(model, make_optimizer(1e-3))
     assert _ynn_in(plain.lower(state, data, key).compile().as_text())
     assert not _ynn_in(fast.lower(state, data, key).compile().as_text())
     s_fast, m_fast = fast(state, data, key)

@@ -18,8 +18,6 @@ from __future__ import annotations
 import pathlib
 from collections.abc import Callable, Sequence
 
-import numpy as np
-
 __all__ = ["render_frames", "write_gif"]
 
 
@@ -54,8 +52,8 @@ def render_frames(fig, update: Callable[[int], object], n_frames: int,
                 if hasattr(artist, "do_3d_projection"):  # a 3-D collection: project the frame
                     artist.do_3d_projection()
                 artist.draw(renderer)
-            pixels = np.asarray(canvas.buffer_rgba()).copy()
-            image = Image.frombuffer("RGBA", size, pixels.tobytes(), "raw", "RGBA", 0, 1)
+            pixels = bytes(canvas.buffer_rgba())  # one copy: the canvas is drawn over next
+            image = Image.frombuffer("RGBA", size, pixels, "raw", "RGBA", 0, 1)
             # as PillowWriter: an opaque frame as RGB (it converts to a GIF palette better)
             frames.append(image if image.getextrema()[3][0] < 255 else image.convert("RGB"))
         return frames
