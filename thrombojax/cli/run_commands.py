@@ -96,6 +96,11 @@ def _add_train(sub) -> None:
                    "acceleration counted this many times more, so the model is fitted first "
                    "where a rollout's end position comes from, the motion of the clot as a "
                    "whole (default 0: off, the plain per-node MSE)")
+    p.add_argument("--wall-loss-weight", type=NN_FLOAT, help="weight of the wall term in the "
+                   "loss: the squared distance by which a predicted clot node lies further "
+                   "through the vessel wall than the true one (in units of the normalised "
+                   "error), so the model pays more for an outward error than an inward one "
+                   "(docs/rollouts.md has what it measured; default 0: off)")
     p.add_argument("--seed", type=NN_INT, help="seed of initialisation, data order, augmentations")
     p.add_argument("--skip-frames", type=NN_INT, help="first frames never used as frame t of a "
                    "window (default 0: every window)")
@@ -181,7 +186,7 @@ def _run_train(args) -> int:
              "stop_history_gradient", "noise_shared", "wall_noise", "wall_signed",
              "wall_clot_mean",
              "history_noise", "speed_noise", "direction_noise", "swell_noise", "time_scale",
-             "clot_mean_weight", "select_by",
+             "clot_mean_weight", "wall_loss_weight", "select_by",
              "axis_features", "follow_axis", "lateral_hold")
     overrides = {k: getattr(args, k) for k in names if getattr(args, k) is not None}
     from thrombojax.train.recipes import DEFAULT_RECIPE, recipe

@@ -44,6 +44,7 @@ _RULES: dict[str, tuple[str, float, bool, bool]] = {
     "swell_noise": ("float", 0.0, True, False),
     "time_scale": ("float", 1.0, True, False),
     "clot_mean_weight": ("float", 0.0, True, False),
+    "wall_loss_weight": ("float", 0.0, True, False),
     "seed": ("int", 0, True, False),
     "split_seed": ("int", 0, True, False),
     "n_val": ("int", 0, True, False),
@@ -120,12 +121,13 @@ def check_train_values(cfg: Any) -> None:
 
 def check_dense_inputs(cfg, budget: int, where: str = "") -> None:
     """Refuse, before training, a sample too large for the dense wall search that signed wall
-    features, wall noise, vessel-axis features and the vessel-following prior use
+    features, wall noise, the wall term of the loss, vessel-axis features and the
+    vessel-following prior use
     (:data:`thrombojax.graph.wall_nodes.DENSE_PLANE_NODES` nodes)."""
     from thrombojax.graph.wall_nodes import DENSE_PLANE_NODES
 
     used = [f"--{n.replace('_', '-')}" for n in ("axis_features", "follow_axis", "lateral_hold",
-                                                    "wall_noise")
+                                                    "wall_noise", "wall_loss_weight")
             if getattr(cfg, n, 0.0) > 0]
     if getattr(cfg, "wall_signed", False):
         used.append("--wall-signed")

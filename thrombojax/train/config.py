@@ -92,6 +92,12 @@ class TrainConfig:
             step after step, so this is the part of the one step a rollout's end position
             depends on; ``train_loss`` includes the weighted term, validation's ``val_loss``
             stays the plain per-node MSE (0: off).
+        wall_loss_weight: weight (>= 0) of the wall term in the training loss: the squared
+            distance by which a predicted clot node lies further through the vessel wall than
+            the true one, in units of the normalised error, averaged over the clot nodes
+            (:mod:`thrombojax.train.wall_loss`): the model pays more for an outward error than
+            for an inward one (what it did to rollouts: ``docs/rollouts.md``). ``train_loss``
+            includes it, ``val_loss`` does not (0: off).
         seed: initialisation, data order, augmentations.
         split_seed: which simulations are validation / test.
         n_val, n_test: simulations held out for validation / test.
@@ -166,6 +172,7 @@ class TrainConfig:
     swell_noise: float = 0.0
     time_scale: float = 1.0
     clot_mean_weight: float = 0.0
+    wall_loss_weight: float = 0.0
     seed: int = 0
     split_seed: int = 0
     n_val: int = 2

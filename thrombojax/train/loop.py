@@ -280,7 +280,8 @@ def train(
                                              swell_noise=cfg.swell_noise,
                                              time_scale=cfg.time_scale, k=k,
                                              pushforward=cfg.pushforward_steps,
-                                             clot_mean_weight=cfg.clot_mean_weight)
+                                             clot_mean_weight=cfg.clot_mean_weight,
+                                             wall_loss_weight=cfg.wall_loss_weight)
         return train_steps[k]
 
     eval_step = make_eval_step(step_fn, stats, k=cfg.rollout_steps)

@@ -36,6 +36,11 @@ node count so it pools the same way. It is part of ``loss_sum`` already (the mea
 component of every node's error); :func:`thrombojax.train.step.batch_loss` can weight it again
 (``clot_mean_weight``): a rollout integrates a clot-wide error step after step, while the
 guards and the clot's own coherence take out much of an error that differs from node to node.
+
+``wall_sum`` (only with ``wall_term=True``, so no wall search is compiled otherwise): the squared
+distance by which the predicted clot nodes lie further through the vessel wall than the true ones
+(:mod:`thrombojax.train.wall_loss`), summed over the clot nodes and averaged over the steps;
+:func:`thrombojax.train.step.batch_loss` adds it weighted by ``wall_loss_weight``.
 """
 
 from __future__ import annotations
@@ -48,6 +53,7 @@ import jax.numpy as jnp
 from thrombojax.simulator.flat import FlatStep
 from thrombojax.simulator.rollout import unroll
 from thrombojax.simulator.step import LearnedStep, target_acceleration
+from thrombojax.train.wall_loss import wall_sum
 from thrombojax.types import TargetStats, clot_mask
 
 __all__ = ["window_loss_terms", "flat_window_loss_terms"]
@@ -65,6 +71,7 @@ def window_loss_terms(
     pushforward: int = 0,
     train: bool,
     rng: jax.Array | None,
+    wall_term: bool = False,
 ) -> dict[str, jax.Array]:
     """Run the learned step on one window and return summed squared errors over its clot nodes.
 
@@ -78,14 +85,16 @@ def window_loss_terms(
         k: steps unrolled with gradients (static, >= 1).
         pushforward: steps applied first without gradients (static, >= 0).
         train: model in training mode (dropout); rng: its PRNG key.
+        wall_term: also return ``wall_sum``, the predictions' squared excess through the wall
+            (:mod:`thrombojax.train.wall_loss`; static: off, no wall search is compiled).
     Returns:
-        ``{"loss_sum", "mse_sum", "clot_mean_sum", "count"}``: squared errors summed over clot
-        nodes and averaged over steps and x, y, z; the clot-wide part (module docstring); the
-        number of clot nodes.
+        ``{"loss_sum", "mse_sum", "clot_mean_sum", "count"}`` (and ``"wall_sum"``): squared
+        errors summed over clot nodes and averaged over steps and x, y, z; the clot-wide part
+        (module docstring); the number of clot nodes.
     """
     frames, positions, outputs = _predict(step, params, stats, frames, node_type, mask, k=k,
                                           pushforward=pushforward, train=train, rng=rng)
-    return _terms(step, stats, frames, node_type, mask, positions, outputs)
+    return _terms(step, stats, frames, node_type, mask, positions, outputs, wall_term)
 
 
 def flat_window_loss_terms(
@@ -100,13 +109,14 @@ def flat_window_loss_terms(
     pushforward: int = 0,
     train: bool,
     rng: jax.Array | None,
+    wall_term: bool = False,
 ) -> dict[str, jax.Array]:
     """:func:`window_loss_terms` of every window of a batch, the model run on the flat graph.
 
     Args:
         step: the flat-batch step (:class:`thrombojax.simulator.flat.FlatStep`).
         frames: ``[B, W, n_nodes, 3]``; node_type, mask: ``[B, n_nodes]``.
-        params, stats, k, pushforward, train: as :func:`window_loss_terms`.
+        params, stats, k, pushforward, train, wall_term: as :func:`window_loss_terms`.
         rng: one dropout key for the whole batch.
     Returns:
         The terms of every window, each ``[B]`` (what ``jax.vmap(window_loss_terms)`` returns).
@@ -114,7 +124,7 @@ def flat_window_loss_terms(
     frames = jnp.moveaxis(frames, 1, 0)  # [W, B, N, 3]: the step maps [B, N, 3] frames
     frames, positions, outputs = _predict(step, params, stats, frames, node_type, mask, k=k,
                                           pushforward=pushforward, train=train, rng=rng)
-    per_window = functools.partial(_terms, step.step, stats)
+    per_window = functools.partial(_terms, step.step, stats, wall_term=wall_term)
     return jax.vmap(per_window, in_axes=(1, 0, 0, 1, 1))(frames, node_type, mask, positions,
                                                          outputs)
 
@@ -148,7 +158,7 @@ def _predict(step, params, stats, frames, node_type, mask, *, k, pushforward, tr
     return frames, positions, outputs
 
 
-def _terms(step, stats, frames, node_type, mask, positions, outputs):
+def _terms(step, stats, frames, node_type, mask, positions, outputs, wall_term=False):
     """The loss terms of one window from its ``H + k + 1`` frames and ``k`` predictions."""
     k, h = positions.shape[0], step.history
     states = jnp.concatenate([frames[:h + 1], positions[:-1]])  # s_{t-h}, ..., s^_{t+k-1}
@@ -167,9 +177,12 @@ def _terms(step, stats, frames, node_type, mask, positions, outputs):
     mse_sq = jnp.where(clot, (positions - truth) ** 2, 0.0).mean(axis=(0, 2))
     count = clot[0, :, 0].sum().astype(jnp.float32)
     mean_err = err.sum(axis=1) / jnp.maximum(count, 1.0)  # [k, 3]: the clot-wide error
-    return {
+    terms = {
         "loss_sum": loss_sq.sum(),
         "mse_sum": mse_sq.sum(),
         "clot_mean_sum": count * (mean_err ** 2).mean(),
         "count": count,
     }
+    if wall_term:
+        terms["wall_sum"] = wall_sum(positions, truth, node_type, mask, stats)
+    return terms

@@ -122,6 +122,7 @@ def batch_loss(
     pushforward: int = 0,
     flat_batch: bool = False,
     clot_mean_weight: float = 0.0,
+    wall_loss_weight: float = 0.0,
 ) -> tuple[jax.Array, dict[str, jax.Array]]:
     """Loss of a batch pooled over its clot nodes, and metrics.
 
@@ -158,10 +159,13 @@ def batch_loss(
         clot_mean_weight: extra weight ``w`` of the clot-wide error: the loss adds ``w`` times
             the squared error of the clot's mean normalised acceleration
             (:mod:`thrombojax.train.loss`; 0: off, the plain per-node MSE).
+        wall_loss_weight: weight ``w`` of the wall term: the loss adds ``w`` times the mean over
+            the clot nodes of the squared excess of the predictions through the wall beyond the
+            truth's (:mod:`thrombojax.train.wall_loss`; 0: off, no wall search compiled).
     Returns:
         ``(loss, metrics)``: ``loss`` is the normalised-acceleration MSE (plus the weighted
-        clot-wide term); ``metrics`` holds ``loss``, ``mse`` (the study's metric, scaled
-        coordinates) and ``nodes``.
+        clot-wide and wall terms); ``metrics`` holds ``loss``, ``mse`` (the study's metric,
+        scaled coordinates) and ``nodes``.
     """
     step = _as_step(model)
     size = batch.mask.shape[0]
@@ -182,12 +186,13 @@ def batch_loss(
                 frames = corrupt(noise_key, frames, node_type, mask)
         return window_loss_terms(
             step, params, stats, frames, node_type, mask, k=k, pushforward=pushforward,
-            train=train, rng=model_key,
+            train=train, rng=model_key, wall_term=wall_term,
         )
 
+    wall_term = bool(wall_loss_weight)
     if flat_batch and flat_batch_ok(step):
         terms = _flat_terms(step, params, stats, batch, keys, train=train, corrupt=corrupt,
-                            k=k, pushforward=pushforward)
+                            k=k, pushforward=pushforward, wall_term=wall_term)
     elif keys is None:
         terms = jax.vmap(lambda f, t, m: one(f, t, m, None))(
             batch.frames, batch.node_type, batch.mask
@@ -199,6 +204,8 @@ def batch_loss(
     loss = terms["loss_sum"].sum() / denom
     if clot_mean_weight:
         loss = loss + clot_mean_weight * terms["clot_mean_sum"].sum() / denom
+    if wall_term:
+        loss = loss + wall_loss_weight * terms["wall_sum"].sum() / denom
     metrics = {"loss": loss, "mse": terms["mse_sum"].sum() / denom, "nodes": count}
     return loss, metrics
 
@@ -237,7 +244,8 @@ def _corrupt(key, frames, node_type, mask, *, current, noise_std, noise_gamma, n
     return frames
 
 
-def _flat_terms(step, params, stats, batch, keys, *, train, corrupt, k, pushforward):
+def _flat_terms(step, params, stats, batch, keys, *, train, corrupt, k, pushforward,
+                wall_term=False):
     """The per-window loss terms with the model run once on the flat batch graph.
 
     Each sample's noise key is the one the vmapped form draws (the first half of its split key),
@@ -252,7 +260,7 @@ def _flat_terms(step, params, stats, batch, keys, *, train, corrupt, k, pushforw
             frames = jax.vmap(corrupt)(pairs[:, 0], frames, batch.node_type, batch.mask)
     return flat_window_loss_terms(FlatStep(step), params, stats, frames, batch.node_type,
                                   batch.mask, k=k, pushforward=pushforward, train=train,
-                                  rng=model_key)
+                                  rng=model_key, wall_term=wall_term)
 
 
 def make_train_step(
@@ -275,6 +283,7 @@ def make_train_step(
     donate: bool = True,
     flat_batch: bool = False,
     clot_mean_weight: float = 0.0,
+    wall_loss_weight: float = 0.0,
 ) -> Callable[[TrainState, Any, jax.Array], tuple[TrainState, dict]]:
     """Build the jitted ``train_step(state, batch, rng) -> (state, metrics)``.
 
@@ -291,6 +300,7 @@ def make_train_step(
         donate: donate the old state's buffers to the new one.
         flat_batch: the batch as one flat graph where the model allows it (:func:`batch_loss`).
         clot_mean_weight: extra weight of the clot-wide error in the loss (:func:`batch_loss`).
+        wall_loss_weight: weight of the wall term in the loss (:func:`batch_loss`).
     Returns:
         The jitted step. ``metrics`` adds ``grad_norm`` and ``lr``-independent scalars.
     """
@@ -308,6 +318,7 @@ def make_train_step(
                 time_scale=time_scale, k=k,
                 pushforward=pushforward,
                 flat_batch=flat_batch, clot_mean_weight=clot_mean_weight,
+                wall_loss_weight=wall_loss_weight,
             )
 
         (_, metrics), grads = jax.value_and_grad(loss_fn, has_aux=True)(state.params)
