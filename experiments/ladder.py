@@ -60,6 +60,9 @@ recipe trained with ``--select-by last`` (``robust``, ``robust_guards``: the ``r
 recipe of ``thrombojax train``; ``robust_nohist_guards`` without its history noise); the
 default recipe with the velocity split along and across the local vessel axis
 (``--axis-features 2``: ``walk_axis`` guarded, ``axis_alone`` the same model unguarded,
+``axis_wall`` / ``axis_wall_guards`` / ``axis_wall_seeds`` it with the wall term in the loss
+weighted 10x (``--wall-loss-weight``, alone, guarded, seeds 0 and 1 alone), ``axis_wall1`` /
+``axis_wall1_seeds`` weighted 1x,
 ``axis_seeds`` / ``axis_ens_guards`` seeds 0 and 1 alone and guarded, each also scored alone;
 ``axis_ens3_guards`` seeds 0-2 guarded; ``walk_ens2_guards`` the control, the default
 recipe without the split, seeds 0 and 1 guarded; ``axis_signed`` / ``axis_signed_guards``

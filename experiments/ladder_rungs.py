@@ -8,7 +8,7 @@ import dataclasses
 import numpy as np
 
 __all__ = ["Rung", "RUNGS", "COMMON", "STUDY_SIZE", "SMALL_MGN", "SIGNED", "HISTNOISE",
-           "WALK", "AXIS", "AXIS_SIGNED", "FOLLOW", "FOLLOW_NOHIST",
+           "WALK", "AXIS", "AXIS_WALL", "AXIS_WALL1", "AXIS_SIGNED", "FOLLOW", "FOLLOW_NOHIST",
            "FOLLOW_HISTNOISE", "FOLLOW_STEADY", "AXIS_SWELL", "AXIS_SWELL10", "AXIS_SWELL03",
            "AXIS_SIGNED_SWELL10", "AXIS_SWELL10_CM", "FOLLOW_NOHIST_CM", "FOLLOW_HOLD",
            "FOLLOW_KSTEP", "FOLLOW_KSTEP6", "FOLLOW_SPEED"]
@@ -48,6 +48,10 @@ NOHIST_ROLLOUT = {**SIGNED, "speed_noise": 0.1, "direction_noise": 0.1, "select_
 # checkpoint (``--select-by last``): ``thrombojax train --recipe robust``
 DIRSPEED_LAST = {**DIRSPEED, "select_by": "last"}
 AXIS = {**WALK, "axis_features": 2.0}  # the default recipe + vessel-axis velocity split
+# it with the wall term in the loss (predictions further through the wall than the truth
+# charged 10x, thrombojax.train.wall_loss): rungs ``axis_wall*``
+AXIS_WALL = {**AXIS, "wall_loss_weight": 10.0}
+AXIS_WALL1 = {**AXIS, "wall_loss_weight": 1.0}  # and weighted 1x: rungs ``axis_wall1*``
 # it with the wall noise and signed wall features of SIGNED: told along the vessel where to go,
 # and across it where the wall is and that a node crossed it (rungs ``axis_signed``)
 AXIS_SIGNED = {**SIGNED, "axis_features": 2.0}
@@ -231,6 +235,12 @@ RUNGS: tuple[Rung, ...] = (
     # (--axis-features 2: the wall's normals within about 2 r), guarded and alone
     Rung("walk_axis", AXIS, guards=True),
     Rung("axis_alone", AXIS, reuse="walk_axis"),
+    # it with the wall term in the loss, alone and guarded; seeds 0 and 1 alone
+    Rung("axis_wall", AXIS_WALL),
+    Rung("axis_wall_guards", AXIS_WALL, guards=True, reuse="axis_wall"),
+    Rung("axis_wall_seeds", AXIS_WALL, reuse="axis_wall", members=2),
+    Rung("axis_wall1", AXIS_WALL1),
+    Rung("axis_wall1_seeds", AXIS_WALL1, reuse="axis_wall1", members=2),
     # seeds 0 and 1 of it (each member also scored alone: the seed spread), alone and guarded
     Rung("axis_seeds", AXIS, reuse="walk_axis", members=2),
     Rung("axis_ens_guards", AXIS, guards=True, reuse="walk_axis", members=2),
