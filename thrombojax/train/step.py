@@ -178,6 +178,8 @@ def batch_loss(
                                 direction_noise=direction_noise, swell_noise=swell_noise,
                                 time_scale=time_scale)
 
+    wall_term = bool(wall_loss_weight)  # static: no wall search compiled when off
+
     def one(frames, node_type, mask, key):
         model_key = None
         if key is not None:
@@ -189,7 +191,6 @@ def batch_loss(
             train=train, rng=model_key, wall_term=wall_term,
         )
 
-    wall_term = bool(wall_loss_weight)
     if flat_batch and flat_batch_ok(step):
         terms = _flat_terms(step, params, stats, batch, keys, train=train, corrupt=corrupt,
                             k=k, pushforward=pushforward, wall_term=wall_term)
