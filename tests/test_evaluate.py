@@ -45,6 +45,13 @@ def test_evaluate_command_writes_json_and_table(tiny_run, capsys):
     assert res["mse"] > 0 and res["constant_velocity_mse"] > 0
     assert "constant velocity MSE" in (root / "ev" / "evaluate.md").read_text()
     assert "constant velocity" in capsys.readouterr().out
+    # where the figures were measured: device, versions, command, load, in JSON and markdown
+    import jax
+
+    env = res["environment"]
+    assert env["jax"] == jax.__version__ and env["device"].startswith("cpu")
+    assert env["command"] and len(env["load_avg_1_5_15"]) == 3  # the process's own command
+    assert f"- jax: {jax.__version__}" in (root / "ev" / "evaluate.md").read_text()
 
 
 def test_rollout_command_writes_everything(tiny_run):
@@ -86,6 +93,12 @@ def test_rollout_command_writes_everything(tiny_run):
         pytest.approx(np.arange(12) * 0.01)
     assert Image.open(out / "sim_0_summary.png").size[0] > 600
     assert "Dataset length unit: vessel radius" in (out / "rollout.md").read_text()
+    # where the figures were measured, and from which checkpoint
+    import jax
+
+    top = json.loads((out / "rollout.json").read_text())
+    assert top["checkpoint"] == "best" and top["environment"]["jax"] == jax.__version__
+    assert f"- jax: {jax.__version__}" in (out / "rollout.md").read_text()
     assert main(["rollout", "--run", str(run), "--dataset", str(data), "--out", str(out),
                  "--sim", "nope"]) == 2
     # a dataset in another length unit is refused, not scaled silently

@@ -27,7 +27,6 @@ checked before the first rollout runs).
 
 from __future__ import annotations
 
-import datetime
 import json
 import pathlib
 
@@ -47,6 +46,7 @@ from thrombojax.eval.single_step import (
     single_step_by_phase,
 )
 from thrombojax.eval.summary_plot import default_summary_frames, plot_rollout_summary
+from thrombojax.eval.tables import environment
 from thrombojax.eval.truth_tables import rollout_markdown
 from thrombojax.io.export import export_trajectory
 from thrombojax.io.hdf5 import Simulation, open_dataset, write_dataset
@@ -249,13 +249,13 @@ def rollout_run(
                         "single_step": single, "files": files,
                         "node_index": res.node_index.tolist(),
                         "curves": curves_in_radii(res.curves, units)}
+    env = environment()  # device, versions, command and load, beside the figures
     result = {"model": trained.model.name, "run_dir": str(run_dir), "dataset": str(dataset_path),
               "selection": {"how": how, "simulations": names}, "skip": skip,
               "skip_frames": skip_frames, "seed": seed, "units": units.to_dict(),
               "guards": bool(guards),
-              "ensemble_members": members.n_members if ensemble else 1,
-              "phase_definitions": PHASE_HELP,
-              "date": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
+              "checkpoint": which, "ensemble_members": members.n_members if ensemble else 1,
+              "phase_definitions": PHASE_HELP, "date": env["date"], "environment": env,
               "simulations": report}
     atomic_write_text(out_dir / "rollout.json", json.dumps(result, indent=1))
     markdown, table = rollout_markdown(result)

@@ -15,7 +15,6 @@ command is :mod:`thrombojax.eval.report`.
 
 from __future__ import annotations
 
-import datetime
 import functools
 import json
 import pathlib
@@ -33,6 +32,7 @@ from thrombojax.errors import ConfigError
 from thrombojax.eval.metrics import fit_vessel_wall, mse_per_step
 from thrombojax.eval.phases import PHASE_HELP, exit_frame, phase_summary, window_phases
 from thrombojax.eval.physical import RadiusUnits, radius_units
+from thrombojax.eval.tables import environment
 from thrombojax.eval.truth_tables import evaluate_markdown
 from thrombojax.io.hdf5 import Dataset, open_dataset
 from thrombojax.io.outputs import atomic_write_text, check_targets
@@ -349,6 +349,7 @@ def evaluate_run(
     cat = {k: np.concatenate([w[k] for w in windows]) for k in windows[0]}
     overall = phase_summary(cat["model"], cat["constant_velocity"],
                             {k: cat[k] for k in PHASE_HELP}, units)  # window-weighted
+    env = environment()  # device, versions, command and load, beside the figures
     result = {
         "model": trained.model.name, "run_dir": str(run_dir), "dataset": str(dataset_path),
         "selection": {"how": how, "simulations": names}, "split": split,
@@ -357,7 +358,7 @@ def evaluate_run(
                   "coordinates (mse) and vessel radii squared (mse_r2); rmse_r = sqrt(mse_r2)",
         "units": units.to_dict(), "phase_definitions": PHASE_HELP,
         **overall["all"], "phases": overall, "simulations": per_sim,
-        "date": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
+        "date": env["date"], "environment": env,
     }
     check_finite({"mse": result["mse"]}, f"{run_dir}: checkpoint '{which}'")
     out_dir.mkdir(parents=True, exist_ok=True)

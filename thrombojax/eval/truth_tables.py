@@ -23,6 +23,16 @@ __all__ = ["evaluate_markdown", "rollout_markdown"]
 GT_LABEL = "ground truth"
 
 
+def _environment_lines(result: Mapping) -> str:
+    """Where the figures were measured (date, command, device, versions, load), from the
+    result's ``environment`` (:func:`thrombojax.eval.tables.environment`); empty for older
+    results without one."""
+    env = result.get("environment")
+    if not env:
+        return ""
+    return "\n## Measured\n\n" + "".join(f"- {k}: {v}\n" for k, v in env.items())
+
+
 def _cells(row: Sequence[Any]) -> list[Any]:
     return ["n/a" if v is None else v for v in row]
 
@@ -76,7 +86,7 @@ def evaluate_markdown(result: Mapping) -> tuple[str, str]:
         + "## All simulations, by phase\n\n" + table
         + "\n## Per simulation (exit frame: first frame with a clot node past the vessel's "
           "open end; n/a: the clot stays inside)\n\n"
-        + markdown_table(sim_header, sim_rows))
+        + markdown_table(sim_header, sim_rows) + _environment_lines(result))
     return markdown, table
 
 
@@ -153,5 +163,5 @@ def rollout_markdown(result: Mapping) -> tuple[str, str]:
         + "## In vessel radii\n\n" + table_r
         + "\n## In scaled [-1, 1] coordinates (the study's unit)\n\n" + table_s
         + f"\nDataset length unit: {result['units']['dataset_units'] or 'not recorded'} "
-          "(pictures and ParaView files are in this unit).\n")
+          "(pictures and ParaView files are in this unit).\n" + _environment_lines(result))
     return markdown, table_r
