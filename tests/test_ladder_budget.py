@@ -108,7 +108,7 @@ def test_members_alone_reports_every_seed(tmp_path, monkeypatch):
         asked.append(which)
         x = ratios[str(run)]
         return {"mean": {"mse_full": x, "mse_full_cv": 1.0, "final_centroid_r": 10 * x,
-                         "mse1_phase": 0.5, "mse1_phase_cv": 1.0, "max_outside": 0.0},
+                         "mse1_phase": 0.5, "mse1_phase_cv": 1.0, "max_outside": x / 9.2},
                 "simulations": {"sim_a": {"final_along_r": x - 1.0}, "sim_b": {}}}
 
     measure = sys.modules["ladder_eval"]  # imported by the ladder script
@@ -125,8 +125,12 @@ def test_members_alone_reports_every_seed(tmp_path, monkeypatch):
     assert "ens" in line and "0.50 / 3.00" in line and "5.00 / 30.00 r" in line
     assert "along the vessel on sim_a (+: ahead) -0.50 / +2.00 r" in line
     assert "sim_b" not in line
-    older = [{k: v for k, v in m.items() if k != "final_along_r"} for m in alone]
-    assert "along" not in report.seed_lines({"ens": {"members_alone": older}})  # older records
+    # each member's share outside, to one decimal (5.4 % must not read as the 5 % target)
+    assert "max clot outside 5.4 % / 32.6 %" in line
+    older = [{k: v for k, v in m.items() if k not in ("final_along_r", "max_outside")}
+             for m in alone]
+    older_line = report.seed_lines({"ens": {"members_alone": older}})
+    assert "along" not in older_line and "outside" not in older_line  # older records
     assert "single" not in line and line.count("\n") == 1
 
 
@@ -190,6 +194,7 @@ def test_transfer_evaluates_every_rung_on_every_simulation_of_the_other_dataset(
                      (2, str(other), False, ["sim_0", "sim_1"])]
     assert json.loads((out / "speed03_seeds" / "transfer_other.json").read_text())["epochs"] == 3
     assert "speed03_guards" in text and (out / "transfer_other" / "table.md").is_file()
+    assert "| 10.0 % |" in text and "| 50.0 % |" in text  # shares outside to one decimal
     ladder._transfer(other, results, out, args, {}, {})
     assert len(calls) == 2  # reused, not evaluated again
 
