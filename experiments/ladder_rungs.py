@@ -277,6 +277,13 @@ RUNGS: tuple[Rung, ...] = (
          checkpoint="last"),
     Rung("axis_swell10_last_ens3_guards", AXIS_SWELL10, guards=True, reuse="axis_swell10",
          members=3, checkpoint="last"),
+    # seeds 0-4 of it, alone and guarded, and the five as a committee alone
+    Rung("axis_swell10_last_seeds5", AXIS_SWELL10, reuse="axis_swell10", members=5,
+         checkpoint="last"),
+    Rung("axis_swell10_last_ens5_guards", AXIS_SWELL10, guards=True, reuse="axis_swell10",
+         members=5, checkpoint="last"),
+    Rung("axis_swell10_last_committee5", AXIS_SWELL10, reuse="axis_swell10", members=5,
+         checkpoint="last", committee=True),
     # the 3 % swell noise, its last checkpoint alone and guarded
     Rung("axis_swell03_last", AXIS_SWELL03, checkpoint="last"),
     Rung("axis_swell03_last_guards", AXIS_SWELL03, guards=True, reuse="axis_swell03_last",

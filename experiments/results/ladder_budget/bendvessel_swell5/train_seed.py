@@ -1,0 +1,34 @@
+"""Train seed SEED of a ladder rung for EPOCHS epochs into the folder the ladder evaluates it from
+(``OUT/<rung>/run`` for seed 0, ``OUT/<rung>/member_<seed>/run`` otherwise), so several seeds can
+train side by side before one ladder command evaluates them all. Run from the repository root::
+
+    python experiments/results/ladder_budget/bendvessel_swell5/train_seed.py \
+        axis_swell10 /work/exp/bv_swell10 3 data/bendvessel.h5 25
+"""
+
+import dataclasses
+import pathlib
+import sys
+
+sys.path.insert(0, "experiments")
+import ladder  # noqa: E402
+
+
+def main() -> None:
+    rung_name, out, seed = sys.argv[1], pathlib.Path(sys.argv[2]), int(sys.argv[3])
+    data, epochs = sys.argv[4], int(sys.argv[5])
+    rung = next(r for r in ladder.RUNGS if r.name == rung_name)
+    folder = out / rung.name if seed == 0 else out / rung.name / f"member_{seed}"
+    folder.mkdir(parents=True, exist_ok=True)
+    if seed:
+        rung = dataclasses.replace(rung, name=f"{rung.name} member {seed}",
+                                   train={**rung.train, "seed": seed})
+    split = {"test_sims": ["bendvessel_005", "bendvessel_012", "bendvessel_019"],
+             "val_sims": ["bendvessel_009"]}  # the ladder's defaults
+    print("training", folder, epochs, "epochs", flush=True)
+    ladder._train_rung(rung, data, folder, split, 0.0, epochs, epochs, None, ladder.COMMON)
+    print("done", flush=True)
+
+
+if __name__ == "__main__":
+    main()
