@@ -74,9 +74,10 @@ out as a committee, the members' mean step fed back, alone and guarded; ``axis_s
 alone and guarded), ``axis_swell_last*`` / ``axis_swell10_last*`` their last
 checkpoints (``*_seeds`` / ``*_ens_guards`` seeds 0-1, ``*_seeds3`` / ``*_ens3_guards`` seeds
 0-2, ``*_seeds5`` / ``*_ens5_guards`` seeds 0-4, ``axis_swell10_last_committee5`` the five as a
-committee alone), ``axis_signed_swell10*`` it with the wall noise and signed wall features
-(``*_last*`` its last checkpoint); ``follow`` / ``follow_alone`` the split with the
-vessel-following prior, guarded and alone;
+committee alone; ``axis_swell10_wall3*`` it with the wall term weighted 3x, the last
+checkpoint, seed 0 and seeds 0-1, alone and guarded), ``axis_signed_swell10*`` it with the
+wall noise and signed wall features (``*_last*`` its last checkpoint); ``follow`` /
+``follow_alone`` the split with the vessel-following prior, guarded and alone;
 ``follow_nohist*`` the prior without the history frame, ``follow_histnoise*`` with history
 noise, ``follow_steady*`` without the history frame and trained only on the frames rollouts
 run on, from the dataset's ``skip_frames``); ``axis_swell10_cm_last*`` the 10 % swell noise

@@ -10,8 +10,8 @@ import numpy as np
 __all__ = ["Rung", "RUNGS", "COMMON", "STUDY_SIZE", "SMALL_MGN", "SIGNED", "HISTNOISE",
            "WALK", "AXIS", "AXIS_WALL", "AXIS_WALL1", "AXIS_SIGNED", "FOLLOW", "FOLLOW_NOHIST",
            "FOLLOW_HISTNOISE", "FOLLOW_STEADY", "AXIS_SWELL", "AXIS_SWELL10", "AXIS_SWELL03",
-           "AXIS_SIGNED_SWELL10", "AXIS_SWELL10_CM", "FOLLOW_NOHIST_CM", "FOLLOW_HOLD",
-           "FOLLOW_KSTEP", "FOLLOW_KSTEP6", "FOLLOW_SPEED"]
+           "AXIS_SWELL10_WALL3", "AXIS_SIGNED_SWELL10", "AXIS_SWELL10_CM", "FOLLOW_NOHIST_CM",
+           "FOLLOW_HOLD", "FOLLOW_KSTEP", "FOLLOW_KSTEP6", "FOLLOW_SPEED"]
 
 SMALL_MGN = {"hidden": 32, "processor_size": 5, "max_neighbors": 12}
 _SCHEDULE = {"max_rotation": 0.0, "warmup_epochs": 2.0}
@@ -61,6 +61,8 @@ FOLLOW = {**AXIS, "follow_axis": 2.0}
 # it with swell noise of 5 % and 10 % (the clot scaled about its centroid in the inputs, the
 # target taking half back): rolled out alone, the recipe's clot swells and leaves the vessel
 AXIS_SWELL, AXIS_SWELL10 = {**AXIS, "swell_noise": 0.05}, {**AXIS, "swell_noise": 0.1}
+# the 10 % swell noise with the wall term weighted 3x: rungs ``axis_swell10_wall3*``
+AXIS_SWELL10_WALL3 = {**AXIS_SWELL10, "wall_loss_weight": 3.0}
 # 3 %: on ClotEntry's 5 r clot it moves the ends by about what 5 % does on BendVessel's 3 r clot
 # (0.075 r); 10 % spoilt ClotEntry's one step
 AXIS_SWELL03 = {**AXIS, "swell_noise": 0.03}
@@ -284,6 +286,15 @@ RUNGS: tuple[Rung, ...] = (
          members=5, checkpoint="last"),
     Rung("axis_swell10_last_committee5", AXIS_SWELL10, reuse="axis_swell10", members=5,
          checkpoint="last", committee=True),
+    # it with the wall term weighted 3x: seed 0 (the last checkpoint alone and guarded), seeds
+    # 0-1 as an ensemble alone and guarded
+    Rung("axis_swell10_wall3", AXIS_SWELL10_WALL3, checkpoint="last"),
+    Rung("axis_swell10_wall3_guards", AXIS_SWELL10_WALL3, guards=True,
+         reuse="axis_swell10_wall3", checkpoint="last"),
+    Rung("axis_swell10_wall3_seeds", AXIS_SWELL10_WALL3, reuse="axis_swell10_wall3",
+         members=2, checkpoint="last"),
+    Rung("axis_swell10_wall3_ens_guards", AXIS_SWELL10_WALL3, guards=True,
+         reuse="axis_swell10_wall3", members=2, checkpoint="last"),
     # the 3 % swell noise, its last checkpoint alone and guarded
     Rung("axis_swell03_last", AXIS_SWELL03, checkpoint="last"),
     Rung("axis_swell03_last_guards", AXIS_SWELL03, guards=True, reuse="axis_swell03_last",
