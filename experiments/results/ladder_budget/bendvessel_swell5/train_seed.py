@@ -6,7 +6,6 @@ train side by side before one ladder command evaluates them all. Run from the re
         axis_swell10 /work/exp/bv_swell10 3 data/bendvessel.h5 25
 """
 
-import dataclasses
 import pathlib
 import sys
 
@@ -18,11 +17,12 @@ def main() -> None:
     rung_name, out, seed = sys.argv[1], pathlib.Path(sys.argv[2]), int(sys.argv[3])
     data, epochs = sys.argv[4], int(sys.argv[5])
     rung = next(r for r in ladder.RUNGS if r.name == rung_name)
-    folder = out / rung.name if seed == 0 else out / rung.name / f"member_{seed}"
+    if seed:  # the ladder's own member recipe and folder
+        folder = ladder._member_folder(rung, out, seed)
+        rung = ladder.member_rung(rung, seed)
+    else:
+        folder = out / rung.name
     folder.mkdir(parents=True, exist_ok=True)
-    if seed:
-        rung = dataclasses.replace(rung, name=f"{rung.name} member {seed}",
-                                   train={**rung.train, "seed": seed})
     split = {"test_sims": ["bendvessel_005", "bendvessel_012", "bendvessel_019"],
              "val_sims": ["bendvessel_009"]}  # the ladder's defaults
     print("training", folder, epochs, "epochs", flush=True)
