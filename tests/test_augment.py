@@ -41,6 +41,30 @@ def test_rotation_is_orthogonal_and_bounded():
     np.testing.assert_allclose(random_rotation(jax.random.PRNGKey(0), 0.0), np.eye(3), atol=1e-7)
 
 
+def test_uniform_rotation_draws_every_orientation_alike():
+    """``uniform=True``: the angle of the uniform measure on rotations, whose mean matrix is 0
+    (E[trace R] = 0) and which turns by < 45 degrees 2.5 % of the time; the default uniform
+    angle turns by < 45 degrees a quarter of the time and has E[trace R] = 1."""
+    keys = jax.random.split(jax.random.PRNGKey(7), 4000)
+    draw = jax.jit(jax.vmap(random_rotation, in_axes=(0, None, None)), static_argnums=2)
+    haar, plain = np.asarray(draw(keys, np.pi, True)), np.asarray(draw(keys, np.pi, False))
+    for rots in (haar, plain):
+        np.testing.assert_allclose(rots @ np.swapaxes(rots, 1, 2),
+                                   np.broadcast_to(np.eye(3), rots.shape), atol=1e-5)
+        np.testing.assert_allclose(np.linalg.det(rots), 1.0, atol=1e-5)
+
+    def angles(rots):
+        return np.arccos(np.clip((np.trace(rots, axis1=1, axis2=2) - 1) / 2, -1, 1))
+
+    assert abs(np.trace(haar, axis1=1, axis2=2).mean()) < 0.1
+    assert abs(np.trace(plain, axis1=1, axis2=2).mean() - 1.0) < 0.1
+    assert (angles(haar) < np.pi / 4).mean() == pytest.approx(0.025, abs=0.01)
+    assert (angles(plain) < np.pi / 4).mean() == pytest.approx(0.25, abs=0.03)
+    np.testing.assert_allclose(np.abs(haar.mean(axis=0)), 0.0, atol=0.05)  # E[R] = 0
+    small = np.asarray(draw(keys[:200], 0.3, True))
+    assert angles(small).max() <= 0.3 + 1e-4  # max_angle still bounds it
+
+
 def test_rotated_window_keeps_distances_and_clot_mask():
     frames, node_type, mask = _window()
     batch = Batch(
@@ -142,3 +166,27 @@ def test_generated_ratio_and_batch_replacement():
     np.testing.assert_array_equal(np.asarray(out.frames[0]), frames)  # real sample untouched
     assert not np.allclose(np.asarray(out.frames[1]), frames)
     np.testing.assert_array_equal(np.asarray(out.mask), np.asarray(batch.mask))
+
+
+def test_uniform_rotation_reaches_the_batch_the_config_and_the_cli():
+    from thrombojax.cli import build_parser
+    from thrombojax.train.config import TrainConfig
+
+    frames, node_type, mask = _window()
+    batch = Batch(frames=np.asarray(frames)[None], node_type=np.asarray(node_type)[None],
+                  mask=np.asarray(mask)[None], generated=np.zeros(1, bool))
+    key = jax.random.PRNGKey(3)
+    outs = {u: np.asarray(augment_batch(key, batch, AugmentConfig(uniform_rotation=u)).frames)
+            for u in (False, True)}
+    k_rot = jax.random.split(jax.random.split(key, 1)[0])[1]  # the sample's rotation key
+    for u, out in outs.items():
+        want = np.asarray(frames) @ np.asarray(random_rotation(k_rot, np.pi, u)).T
+        np.testing.assert_allclose(out[0], want, atol=1e-5)
+    assert not np.allclose(outs[False], outs[True])
+    assert TrainConfig.from_dict({}).uniform_rotation is False  # older run configs
+    assert TrainConfig(uniform_rotation=True).to_dict()["uniform_rotation"] is True
+    with pytest.raises(ConfigError, match="uniform_rotation"):
+        TrainConfig(uniform_rotation=1)
+    args = build_parser().parse_args(["train", "--dataset", "d.h5", "--model", "mgn", "--out",
+                                      "o", "--uniform-rotation"])
+    assert args.uniform_rotation is True

@@ -262,6 +262,33 @@ def test_rollout_of_an_ensemble_reports_its_spread(tiny_run):
     assert {"spearman", "calibration", "within_2_spread"} <= set(unc)
 
 
+def test_rollout_rotations_make_a_rotation_ensemble(tiny_run):
+    """--rotations R: one model on R turned copies (its spread reported as an ensemble's);
+    --rotations 1 is the identity alone, the plain rollout; an ensemble's M members x R."""
+    data, run, root = tiny_run
+    common = ["--dataset", str(data), "--sim", "sim_0", "--no-gif", "--quiet", "--no-guards"]
+    outs = {}
+    for name, extra in (("plain", []), ("rot1", ["--rotations", "1"]),
+                        ("rot3", ["--rotations", "3"])):
+        assert main(["rollout", "--run", str(run), "--out", str(root / name), *common,
+                     *extra]) == 0
+        outs[name] = json.loads((root / name / "rollout.json").read_text())
+    assert outs["rot3"]["ensemble_members"] == 3 and outs["rot3"]["rotations"] == 3
+    assert outs["plain"]["ensemble_members"] == 1 and outs["plain"]["rotations"] == 0
+    err = {k: v["simulations"]["sim_0"]["curves"]["mgn"]["mse"] for k, v in outs.items()}
+    np.testing.assert_allclose(err["rot1"], err["plain"], rtol=1e-5, atol=0)
+    assert not np.allclose(err["rot3"], err["plain"])  # a tiny model is far from equivariant
+    assert max(outs["rot3"]["simulations"]["sim_0"]["curves"]["mgn"]["spread"]) > 0
+    # the single-step table is the unturned model's in every case
+    assert outs["rot3"]["simulations"]["sim_0"]["single_step"] == \
+        outs["plain"]["simulations"]["sim_0"]["single_step"]
+    if (root / "ens").is_dir():  # the ensemble of the test above: 2 members x 2 copies
+        assert main(["rollout", "--run", str(root / "ens"), "--out", str(root / "ens_rot"),
+                     *common, "--rotations", "2"]) == 0
+        assert json.loads((root / "ens_rot" / "rollout.json").read_text())[
+            "ensemble_members"] == 4
+
+
 def test_train_members_cli_makes_an_ensemble(tiny_run, capsys):
     data, _, root = tiny_run
     assert main(["train", "--dataset", str(data), "--model", "mgn", "--out",

@@ -286,37 +286,14 @@ def test_relax_edges_brings_strain_within_limits():
 def test_guards_in_the_compiled_rollout():
     """A model that pushes clot nodes outward: containment on -> 0 % outside, off -> > 0 %;
     corrections are recorded per step, vessel nodes are never moved."""
-    import dataclasses
+    from wall_factory import Outward, straight_tube
 
     from thrombojax.simulator.guard_set import build_guards
     from thrombojax.simulator.rollout import rollout, rollout_with_corrections
     from thrombojax.simulator.walls import fraction_outside_wall
     from thrombojax.types import NodeType, TargetStats
 
-    @dataclasses.dataclass(frozen=True)
-    class Outward:
-        """Accelerates every node away from the vessel axis (the x axis)."""
-
-        name: str = "outward"
-
-        def build_graph(self, inputs):
-            return {}
-
-        def init(self, rng, inputs, graph):
-            return {}
-
-        def apply(self, params, inputs, graph, *, train=False, rng=None):
-            radial = inputs.positions * jnp.asarray([0.0, 1.0, 1.0])
-            return 0.05 * radial / (jnp.linalg.norm(radial, axis=-1, keepdims=True) + 1e-6)
-
-    ang = np.linspace(0, 2 * np.pi, 24, endpoint=False)
-    ring = np.stack([np.zeros_like(ang), np.cos(ang), np.sin(ang)], 1)
-    wall = np.concatenate([ring + [x, 0, 0] for x in np.linspace(-2, 2, 21)])
-    rng = np.random.default_rng(0)
-    clot = rng.uniform(-0.4, 0.4, (30, 3))
-    clot[:, 0] *= 2
-    x0 = np.concatenate([clot, wall]).astype(np.float32)
-    node_type = np.array([NodeType.CLOT] * 30 + [NodeType.VESSEL] * len(wall), np.int32)
+    x0, node_type = straight_tube()
     mask = np.ones(len(x0), bool)
     stats = TargetStats(mean=jnp.zeros(3), std=jnp.ones(3))
     guards = build_guards(x0, node_type, x0, node_type, radius=1.0, coherence=False)

@@ -101,11 +101,12 @@ def test_members_alone_reports_every_seed(tmp_path, monkeypatch):
         runs.append((run, ratio))
     ratios = dict((str(r), x) for r, x in runs)
 
-    asked = []
+    asked, turned = [], []
 
-    def fake_evaluate(rs, data, guards, n_nodes, which="best"):
+    def fake_evaluate(rs, data, guards, n_nodes, which="best", rotations=0):
         (run,) = rs
         asked.append(which)
+        turned.append(rotations)
         x = ratios[str(run)]
         return {"mean": {"mse_full": x, "mse_full_cv": 1.0, "final_centroid_r": 10 * x,
                          "mse1_phase": 0.5, "mse1_phase_cv": 1.0, "max_outside": x / 9.2},
@@ -117,6 +118,8 @@ def test_members_alone_reports_every_seed(tmp_path, monkeypatch):
     assert [m["seed"] for m in alone] == [0, 1] and asked == ["best", "best"]
     measure.members_alone([r for r, _ in runs], "d.h5", True, None, "last")
     assert asked[2:] == ["last", "last"]  # a rung's checkpoint="last" reaches every member
+    measure.members_alone([r for r, _ in runs], "d.h5", True, None, "last", 4)
+    assert turned == [0, 0, 0, 0, 4, 4]  # and a rotation rung's copies
     assert [m["mse_full_ratio"] for m in alone] == [0.5, 3.0]
     # the signed final error along the vessel per simulation, where the evaluation has it
     assert [m["final_along_r"] for m in alone] == [{"sim_a": -0.5}, {"sim_a": 2.0}]
@@ -172,8 +175,9 @@ def test_transfer_evaluates_every_rung_on_every_simulation_of_the_other_dataset(
         return [out_ / rung.name / "run"] * rung.members
 
     def fake_evaluate(runs, data, guards, n_nodes=None, names=None, which="best",
-                      committee=False):
+                      committee=False, rotations=0):
         calls.append((len(runs), data, guards, names))
+        assert rotations == 0  # these rungs roll out no rotated copies
         return {"mean": {"mse1_all": 1.0, "mse1_all_cv": 2.0, "mse1_phase": 1.0,
                          "mse1_phase_cv": 2.0, "mse10": 0.1, "mse_full": 0.5,
                          "mse_full_cv": 1.0, "final_centroid_r": 0.7,

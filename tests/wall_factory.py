@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import dataclasses
+
+import jax.numpy as jnp
 import numpy as np
 
 from thrombojax.sim.geometry import bent_tube_points, make_centreline, signed_distance_np, wall_mesh
@@ -57,3 +60,37 @@ def radial_push(vessel: dict, amount: float) -> np.ndarray:
 def true_phi(vessel: dict, x: np.ndarray) -> np.ndarray:
     """Signed distance to the smooth vessel wall (> 0 inside) of the clot nodes of ``x``."""
     return signed_distance_np(vessel["centreline"], x[vessel["clot"]])["phi"]
+
+
+def straight_tube(half_length: float = 2.0, n_rings: int = 21, n_clot: int = 30, seed: int = 0):
+    """``(x0 [N, 3] float32, node_type [N])``: a unit-radius tube along x (rings of 24 vessel
+    nodes from ``-half_length`` to ``half_length``) with ``n_clot`` clot nodes first, uniform in
+    ``[-0.8, 0.8] x [-0.4, 0.4]^2``."""
+    from thrombojax.types import NodeType
+
+    ang = np.linspace(0, 2 * np.pi, 24, endpoint=False)
+    ring = np.stack([np.zeros_like(ang), np.cos(ang), np.sin(ang)], 1)
+    wall = np.concatenate([ring + [x, 0, 0]
+                           for x in np.linspace(-half_length, half_length, n_rings)])
+    clot = np.random.default_rng(seed).uniform(-0.4, 0.4, (n_clot, 3)) * [2.0, 1.0, 1.0]
+    x0 = np.concatenate([clot, wall]).astype(np.float32)
+    node_type = np.array([NodeType.CLOT] * n_clot + [NodeType.VESSEL] * len(wall), np.int32)
+    return x0, node_type
+
+
+@dataclasses.dataclass(frozen=True)
+class Outward:
+    """A surrogate that accelerates every node away from the x axis of its inputs (the axis of
+    :func:`straight_tube`), 0.05 per step: its clot leaves the tube unless guarded."""
+
+    name: str = "outward"
+
+    def build_graph(self, inputs):
+        return {}
+
+    def init(self, rng, inputs, graph):
+        return {}
+
+    def apply(self, params, inputs, graph, *, train=False, rng=None):
+        radial = inputs.positions * jnp.asarray([0.0, 1.0, 1.0])
+        return 0.05 * radial / (jnp.linalg.norm(radial, axis=-1, keepdims=True) + 1e-6)

@@ -49,6 +49,11 @@ def _add_train(sub) -> None:
                    "model config field)")
     p.add_argument("--max-rotation", type=angle, help="largest random rotation, radians; also "
                    "'pi', 'pi/2', '0.5pi' or '90deg' (study's best: pi; 0 disables)")
+    p.add_argument("--uniform-rotation", action="store_true", default=None, help="draw the "
+                   "rotation's angle from the uniform measure on rotations (with "
+                   "--max-rotation pi every orientation equally likely; default: an angle "
+                   "uniform in [0, max], which turns a window by < 45 degrees a quarter of the "
+                   "time)")
     p.add_argument("--nodes-per-sample", type=POS_INT, help="subsample N nodes per sample, clot "
                    "fraction kept (study: 2048 on ClotEntry; default all nodes)")
     p.add_argument("--bary-ratio", type=NN_FLOAT, help="BaryCentricSampling samples per real "
@@ -179,7 +184,7 @@ def _run_train(args) -> int:
     from thrombojax.train.config import RunConfig, TrainConfig, load_config_file
     from thrombojax.train.loop import train
 
-    names = ("epochs", "batch_size", "lr", "warmup_epochs", "max_rotation",
+    names = ("epochs", "batch_size", "lr", "warmup_epochs", "max_rotation", "uniform_rotation",
              "nodes_per_sample", "bary_ratio", "noise_std", "seed", "skip_frames", "n_val",
              "n_test", "tiny", "rollout_steps", "noise_gamma", "pushforward_steps",
              "curriculum_epochs", "frame", "wall_features", "history", "noise_walk",
@@ -302,6 +307,11 @@ def _add_rollout(sub) -> None:
     p.add_argument("--no-guards", action="store_true", help="roll the model out alone: no "
                    "containment in the vessel, no clot coherence (default: guards on, their "
                    "corrections reported)")
+    p.add_argument("--rotations", type=NN_INT, default=0, metavar="R",
+                   help="a rotation ensemble: also roll the model (every member of an "
+                   "ensemble) out on R rotated copies of each simulation, the identity first, "
+                   "turned back and averaged; the spread is reported as for an ensemble "
+                   "(default 0: off)")
     output_flags(p, "replace existing rollout files in DIR")
     p.set_defaults(func=_run_rollout)
 
@@ -313,7 +323,7 @@ def _run_rollout(args) -> int:
                       which=args.checkpoint, skip=args.skip, n_steps=args.steps,
                       n_nodes=args.nodes, seed=args.seed, format=args.format,
                       gif=not args.no_gif, force=args.force, progress=not args.quiet,
-                      guards=not args.no_guards)
+                      guards=not args.no_guards, rotations=args.rotations)
     print(f"simulations: {res['selection']['how']}")
     print(res["table"], end="")
     print(f"wrote rollouts to {args.out}/")

@@ -51,6 +51,8 @@ from thrombojax.eval.truth_tables import rollout_markdown
 from thrombojax.io.export import export_trajectory
 from thrombojax.io.hdf5 import Simulation, open_dataset, write_dataset
 from thrombojax.io.outputs import atomic_path, atomic_write_text, check_targets, safe_stems
+from thrombojax.simulator.ensemble import stack_params
+from thrombojax.simulator.rotations import RotatedStep, rotation_members
 from thrombojax.train.ensemble import load_ensemble
 from thrombojax.train.guards import check_finite, check_in_box
 from thrombojax.train.state import load_trained
@@ -173,6 +175,7 @@ def rollout_run(
     force: bool = False,
     progress: bool = False,
     guards: bool = True,
+    rotations: int = 0,
 ) -> dict:
     """Roll a trained run out on simulations of a dataset and write trajectories, plots, metrics.
 
@@ -198,6 +201,11 @@ def rollout_run(
         progress: progress bar over simulations.
         guards: apply the physics guards (containment in the vessel, clot coherence) after every
             step and report how far they moved nodes (False: the model alone).
+        rotations: > 0: a rotation ensemble (:mod:`thrombojax.simulator.rotations`): every
+            model (each member of an ensemble) also rolls out on that many rotated copies of
+            each simulation (the identity and ``fixed_rotations(rotations)``), turned back; the
+            prediction is the mean of them all and the spread is reported as for an ensemble.
+            The single-step table stays that of the model(s) unturned.
     Returns:
         JSON-ready summary (also written to ``rollout.json``; tables in ``rollout.md``, the one
         in vessel radii under ``table``).
@@ -209,6 +217,11 @@ def rollout_run(
     else:
         trained = load_trained(run_dir, which=which)
         params = trained.params
+    step, n_members = trained.step, members.n_members if ensemble else 1
+    if rotations:  # each model on each turned copy: one member per (model, rotation)
+        step, params = RotatedStep.of(step), rotation_members(
+            params if ensemble else stack_params([params]), rotations)
+        n_members *= int(rotations)
     ds = open_dataset(dataset_path)
     check_units(trained.config, ds, run_dir=run_dir, dataset_path=dataset_path)
     names, how = select_simulations(trained, ds, simulations=simulations, split=split,
@@ -222,7 +235,6 @@ def rollout_run(
     check_targets([*targets, out_dir / "rollout.json", out_dir / "rollout.md"],
                   inputs=(dataset_path,), force=force, what="rollout output")
     units = radius_units(trained.scaling, ds)
-    step = trained.step
     out_dir.mkdir(parents=True, exist_ok=True)
     report = {}
     for name in tqdm(names, desc=f"rollout {trained.model.name}", unit="sim",
@@ -232,13 +244,14 @@ def rollout_run(
         check_in_box(pos, name, dataset_path, run_dir)
         res = rollout_simulation(step, params, trained.stats, pos, node_type,
                                  name=name, t0=max(skip, 1), n_steps=n_steps, n_nodes=n_nodes,
-                                 seed=seed, wall_cells=sim.wall_cells, ensemble=ensemble,
+                                 seed=seed, wall_cells=sim.wall_cells,
+                                 ensemble=n_members > 1 or bool(rotations),
                                  guard_radius=1.0 / units.factor if guards else None)
         check_finite({"predicted positions": float(np.sum(res.pred))},
                      f"{run_dir}: checkpoint '{which}' on simulation '{name}'")
         exit_at = simulation_exit_frame(pos, node_type, sim.wall_cells)
         _, single = single_step_by_phase(
-            step, trained.params, trained.stats, pos[:, res.node_index], res.node_type,
+            trained.step, trained.params, trained.stats, pos[:, res.node_index], res.node_type,
             skip_frames=skip_frames, exit_at=exit_at, units=units)
         files = save_rollout(res, sim, trained.scaling, out_dir, model_name=trained.model.name,
                              format=format, gif=gif, stem=stems[name],
@@ -254,7 +267,7 @@ def rollout_run(
               "selection": {"how": how, "simulations": names}, "skip": skip,
               "skip_frames": skip_frames, "seed": seed, "units": units.to_dict(),
               "guards": bool(guards),
-              "checkpoint": which, "ensemble_members": members.n_members if ensemble else 1,
+              "checkpoint": which, "ensemble_members": n_members, "rotations": int(rotations),
               "phase_definitions": PHASE_HELP, "date": env["date"], "environment": env,
               "simulations": report}
     atomic_write_text(out_dir / "rollout.json", json.dumps(result, indent=1))

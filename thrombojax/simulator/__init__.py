@@ -8,6 +8,8 @@
 - :mod:`.guards`: physics guards on a step's output (containment in the wall, coherence of the
   clot's shape, edge-length relaxation), each returning how far it moved every node.
 - :mod:`.walls`: per-node input features from the wall and rest-state edge features.
+- :mod:`.ensemble`, :mod:`.committee`, :mod:`.rotations`: many rollouts in one compiled program
+  (M models, perturbed starts, a committee fed its mean, one model on rotated copies).
 
 Training losses, evaluation and benchmarks call :func:`thrombojax.simulator.step.make_step` and
 never rebuild the step.

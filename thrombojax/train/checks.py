@@ -92,9 +92,9 @@ def check_train_values(cfg: Any) -> None:
 
     Also: the memory ``bary_ratio`` asks for even on one window
     (:func:`thrombojax.train.memory.check_train_memory`; the training loop checks again with the
-    dataset's sizes), ``tiny``, ``noise_walk``, ``stop_history_gradient`` and ``wall_signed``
-    booleans (``wall_signed`` only with ``wall_features``), ``history_noise`` only with
-    ``history >= 2``,
+    dataset's sizes), ``tiny``, ``noise_walk``, ``stop_history_gradient``,
+    ``uniform_rotation`` and ``wall_signed`` booleans (``wall_signed`` only with
+    ``wall_features``), ``history_noise`` only with ``history >= 2``,
     ``model_config`` an object; upper bounds in :data:`_HIGH`.
     """
     for name in _RULES:
@@ -104,7 +104,8 @@ def check_train_values(cfg: Any) -> None:
         n_windows=1, n_val_windows=0, bary_ratio=cfg.bary_ratio, batch_size=cfg.batch_size or 1,
         budget=1, length=3, max_neighbors=cfg.bary_max_neighbors,
     ), values={"bary_ratio": float(cfg.bary_ratio), "bary_max_neighbors": cfg.bary_max_neighbors})
-    for flag in ("tiny", "noise_walk", "stop_history_gradient", "wall_signed", "wall_clot_mean"):
+    for flag in ("tiny", "noise_walk", "stop_history_gradient", "wall_signed", "wall_clot_mean",
+                 "uniform_rotation"):
         if not isinstance(getattr(cfg, flag, False), bool):
             raise ConfigError(f"{_option(flag)} ({flag}) must be true or false, got "
                               f"{getattr(cfg, flag)!r}")

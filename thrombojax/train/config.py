@@ -47,6 +47,9 @@ class TrainConfig:
         weight_decay: AdamW decoupled weight decay.
         grad_clip: global-norm gradient clip (``None``: off).
         max_rotation: random rotation up to this angle in radians (0: off).
+        uniform_rotation: the rotation's angle is drawn from the uniform measure on the
+            rotations (:func:`thrombojax.data.augment.random_rotation`: with ``max_rotation =
+            pi`` every orientation equally likely), not uniform in ``[0, max_rotation]``.
         nodes_per_sample: subsample this many nodes per sample (``None``: all).
         bary_ratio: generated (BaryCentricSampling) samples per real sample.
         bary_radius: radius of the graph whose triangles are sampled (``None``: model radius).
@@ -157,6 +160,7 @@ class TrainConfig:
     weight_decay: float = 0.01
     grad_clip: float | None = None
     max_rotation: float = math.pi
+    uniform_rotation: bool = False
     nodes_per_sample: int | None = None
     bary_ratio: float = 0.0
     bary_radius: float | None = None

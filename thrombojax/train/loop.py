@@ -259,7 +259,8 @@ def train(
         (out_dir / "metrics.jsonl").write_text("")
 
     aug_cfg = AugmentConfig(
-        max_rotation=cfg.max_rotation, barycentric=cfg.bary_ratio > 0,
+        max_rotation=cfg.max_rotation, uniform_rotation=cfg.uniform_rotation,
+        barycentric=cfg.bary_ratio > 0,
         radius=cfg.bary_radius or model_cfg.radius, max_neighbors=cfg.bary_max_neighbors,
     )
     augment = jax.jit(functools.partial(augment_batch, config=aug_cfg))
