@@ -75,7 +75,12 @@ alone and guarded), ``axis_swell_last*`` / ``axis_swell10_last*`` their last
 checkpoints (``*_seeds`` / ``*_ens_guards`` seeds 0-1, ``*_seeds3`` / ``*_ens3_guards`` seeds
 0-2, ``*_seeds5`` / ``*_ens5_guards`` seeds 0-4, ``axis_swell10_last_committee5`` the five as a
 committee alone; ``axis_swell10_wall3*`` it with the wall term weighted 3x, the last
-checkpoint, seed 0 and seeds 0-1, alone and guarded), ``axis_signed_swell10*`` it with the
+checkpoint, seed 0 and seeds 0-1, alone and guarded; ``axis_swell10_last_rot4*`` /
+``*_rot8`` / ``*_seeds_rot4`` its last checkpoint as a rotation ensemble, each model also on 3
+or 7 rotated copies of every simulation, turned back and averaged
+(``thrombojax.simulator.rotations``); ``axis_swell10_haar*`` it trained with uniformly random
+orientations (``--uniform-rotation``), seed 0 and seeds 0-1, alone, guarded and as a rotation
+ensemble), ``axis_signed_swell10*`` it with the
 wall noise and signed wall features (``*_last*`` its last checkpoint); ``follow`` /
 ``follow_alone`` the split with the vessel-following prior, guarded and alone;
 ``follow_nohist*`` the prior without the history frame, ``follow_histnoise*`` with history
@@ -270,7 +275,8 @@ def main(argv: list[str] | None = None) -> int:
                             args.epochs, args.nodes, common)
             runs = _member_runs(rung, out, args.dataset, split, args.nodes, common)
             res = evaluate_runs(runs, args.dataset, rung.guards, args.nodes,
-                                which=rung.checkpoint, committee=rung.committee)
+                                which=rung.checkpoint, committee=rung.committee,
+                                rotations=rung.rotations)
             res.update(rung=dataclasses.asdict(rung) | {"train": {k: str(v) for k, v in
                                                                    rung.train.items()}},
                        seconds=time.perf_counter() - t)
@@ -281,7 +287,7 @@ def main(argv: list[str] | None = None) -> int:
         if rung.members > 1 and not rung.committee and "members_alone" not in res:
             runs = _member_runs(rung, out, args.dataset, split, args.nodes, common)
             res["members_alone"] = members_alone(runs, args.dataset, rung.guards, args.nodes,
-                                                 rung.checkpoint)
+                                                 rung.checkpoint, rung.rotations)
             atomic_write_text(done, json.dumps(res, indent=1))
         results[rung.name] = res
     table = write_reports(out, results, title=args.title, test_sims=split["test_sims"],
@@ -306,7 +312,8 @@ def _transfer(other: pathlib.Path, results: dict, out: pathlib.Path, args, split
             continue
         runs = _member_runs(rungs[name], out, args.dataset, split, args.nodes, common)
         moved[name] = evaluate_runs(runs, str(other), rungs[name].guards, args.nodes, names,
-                                rungs[name].checkpoint, rungs[name].committee)
+                                rungs[name].checkpoint, rungs[name].committee,
+                                rotations=rungs[name].rotations)
         atomic_write_text(path, json.dumps(moved[name], indent=1))
     folder = out / f"transfer_{other.stem}"
     folder.mkdir(exist_ok=True)

@@ -43,6 +43,7 @@ from thrombojax.simulator.rollout import (
     guarded_unroll,
     rollout_with_corrections,
 )
+from thrombojax.simulator.rotations import RotatedStep, fixed_rotations
 from thrombojax.simulator.step import make_step
 from thrombojax.train.state import load_trained
 from thrombojax.types import clot_mask
@@ -53,14 +54,19 @@ __all__ = ["evaluate_runs", "members_alone"]
 def evaluate_runs(runs: list[pathlib.Path], data: str, guards: bool,
                   n_nodes: int | None = None, names: list[str] | None = None,
                   which: str = "best", committee: bool = False,
-                  guard_options: dict | None = None, step_options: dict | None = None) -> dict:
+                  guard_options: dict | None = None, step_options: dict | None = None,
+                  rotations: int | np.ndarray = 0) -> dict:
     """Roll the runs (one model, or an ensemble; each run's ``which`` checkpoint) out on the
     simulations ``names`` of ``data`` (default: the first run's test split) and measure them
     against constant velocity. An ensemble is rolled out as independent members (their mean
     guarded) or, with ``committee``, as a committee (the members' mean step fed back).
     ``guard_options``: keyword arguments of ``build_guards`` (e.g. ``{"coherence": False}``).
     ``step_options``: fields of the learned step replaced at rollout time (e.g.
-    ``{"lateral_radius": 0.06}``, the lateral hold on models trained without it)."""
+    ``{"lateral_radius": 0.06}``, the lateral hold on models trained without it).
+    ``rotations`` > 0: every model is rolled out on that many rotated copies of each
+    simulation, turned back (``thrombojax.simulator.rotations``: the identity and
+    ``fixed_rotations(rotations)``, or the ``[R, 3, 3]`` matrices given), all of them members
+    of one ensemble."""
     members = [load_trained(run, which=which) for run in runs]
     trained = members[0]
     ds = open_dataset(data)
@@ -69,6 +75,11 @@ def evaluate_runs(runs: list[pathlib.Path], data: str, guards: bool,
     step = dataclasses.replace(trained.step, **(step_options or {}))
     cv = make_step(create_model("constant_velocity"))
     params = [m.params for m in members]
+    turned = np.ndim(rotations) > 0 or bool(rotations)
+    if turned:  # each model on each turned copy: a member per (model, rotation)
+        rots = np.asarray(rotations) if np.ndim(rotations) else fixed_rotations(int(rotations))
+        step = RotatedStep.of(step)
+        params = [{"inner": p, "rotation": rot} for p in params for rot in rots]
     per_sim = {}
     for name in trained.split.test if names is None else names:
         full, full_nt = scaled_simulation(ds, name, trained.scaling)
@@ -84,8 +95,8 @@ def evaluate_runs(runs: list[pathlib.Path], data: str, guards: bool,
             if guards else None
         true = pos[skip + 1:]
         extra = {}
-        if len(members) == 1:
-            pred, corr = rollout_with_corrections(step, trained.params, trained.stats,
+        if len(params) == 1:
+            pred, corr = rollout_with_corrections(step, params[0], trained.stats,
                                                   step.previous(pos, skip), pos[skip], nt, mask, n,
                                                   guards=g)
         elif committee:
@@ -114,11 +125,11 @@ def evaluate_runs(runs: list[pathlib.Path], data: str, guards: bool,
         wall = fit_vessel_wall(full[0], full_nt, wall_cells=ds[name].wall_cells)
         mse, mse_cv = mse_per_step(pred, true, clot) / r**2, mse_per_step(base, true, clot) / r**2
         outside, centroid = fraction_outside(wall, pred, clot), centroid_error(pred, true, clot) / r
-        if len(members) == 1 and step.history >= 2:  # thrombojax.eval.drift
+        if len(params) == 1 and not turned and step.history >= 2:  # thrombojax.eval.drift
             extra["history_gain"] = float(history_gain(
                 step, trained.params, trained.stats, pos, nt, np.arange(skip, pos.shape[0] - 1),
                 delta=0.01 * r).mean())
-        if len(members) == 1:
+        if len(params) == 1 and not turned:
             extra["speed_carry"] = float(speed_carry(
                 step, trained.params, trained.stats, pos, nt, np.arange(skip, pos.shape[0] - 1),
                 delta=0.05).mean())
@@ -162,16 +173,19 @@ def evaluate_runs(runs: list[pathlib.Path], data: str, guards: bool,
         if k in mean:  # the mean's correction: guarded ensembles only
             mean[k] = float(np.max([s[k] for s in per_sim.values()]))
     return {"simulations": per_sim, "mean": mean, "skip_frames": skip, "n_nodes": len(idx),
-            "members": len(members),
+            "members": len(params), "models": len(members),
+            "rotations": len(params) // len(members) if turned else 0,
             "epochs": json.loads((runs[0] / "config.json").read_text())["train"]["epochs"]}
 
 
 def members_alone(runs: list[pathlib.Path], data: str, guards: bool,
-                  n_nodes: int | None, which: str = "best") -> list[dict]:
-    """Each member of an ensemble evaluated alone: how much one recipe varies with its seed."""
+                  n_nodes: int | None, which: str = "best",
+                  rotations: int | np.ndarray = 0) -> list[dict]:
+    """Each member of an ensemble evaluated alone (with its ``rotations``, as
+    :func:`evaluate_runs`): how much one recipe varies with its seed."""
     out = []
     for run in runs:
-        res = evaluate_runs([run], data, guards, n_nodes, which=which)
+        res = evaluate_runs([run], data, guards, n_nodes, which=which, rotations=rotations)
         mean = res["mean"]
         seed = json.loads((run / "config.json").read_text())["train"]["seed"]
         # the final error along the true track per simulation, signed (+: ahead of the true

@@ -1,0 +1,110 @@
+"""The stability ladder's training recipes: the option sets its rungs train with
+(``experiments/ladder_rungs.py`` names the rungs; ``experiments/ladder.py`` runs them)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["COMMON", "STUDY_SIZE", "SMALL_MGN", "SIGNED", "HISTNOISE", "WALK", "AXIS", "AXIS_WALL",
+           "AXIS_WALL1", "AXIS_SIGNED", "FOLLOW", "FOLLOW_NOHIST", "FOLLOW_HISTNOISE",
+           "FOLLOW_STEADY", "AXIS_SWELL", "AXIS_SWELL10", "AXIS_SWELL03", "AXIS_SWELL10_WALL3",
+           "AXIS_SWELL10_HAAR", "AXIS_SIGNED_SWELL10", "AXIS_SWELL10_CM", "FOLLOW_NOHIST_CM",
+           "FOLLOW_HOLD", "FOLLOW_KSTEP", "FOLLOW_KSTEP6", "FOLLOW_SPEED", "NOISE", "ROTATION",
+           "HISTORY", "DIRECTION", "DIRSPEED", "DIRSPEED3", "DIRSPEED_LAST", "FOLLOW_ROOM",
+           "NOHIST_ROLLOUT", "SPEED03", "SPEED10", "TSCALE"]
+
+SMALL_MGN = {"hidden": 32, "processor_size": 5, "max_neighbors": 12}
+_SCHEDULE = {"max_rotation": 0.0, "warmup_epochs": 2.0}
+COMMON = {**_SCHEDULE, "batch_size": 4, "model_config": SMALL_MGN}
+# ``--size study``: the study's MeshGraphNet (hidden 128, 15 blocks, 32 neighbours) and batch 8,
+# for an accelerator (each rung otherwise as above)
+STUDY_SIZE = {**_SCHEDULE, "batch_size": 8}
+NOISE = {"noise_std": 0.01}  # vessel radii
+# the rotation rung's recipe (the `rollout` recipe of `thrombojax train`), shared by the
+# ensemble rung's members
+ROTATION = {**NOISE, "pushforward_steps": 1, "rollout_steps": 3, "curriculum_epochs": 6,
+            "max_rotation": np.pi}
+# a step that also reads the acceleration before t, trained with the single-step loss (with
+# ``noise_walk``: the `history` recipe, the default of `thrombojax train`)
+HISTORY = {**NOISE, "max_rotation": np.pi, "history": 2}
+WALK = {**HISTORY, "noise_walk": True}  # the `history` recipe (rung `history_walk`)
+# it with wall noise 0.1 r and signed wall features cut off at 0.5 r (rung `wallnoise_signed`)
+SIGNED = {**WALK, "wall_noise": 0.1, "wall_features": 0.5, "wall_signed": True}
+# it with history noise 0.02 r (the clot-wide history acceleration not carried over)
+HISTNOISE = {**SIGNED, "history_noise": 0.02}
+# it with speed noise (the clot's input motion scaled by 1 + N(0, S^2), the target unchanged)
+SPEED03, SPEED10 = {**HISTNOISE, "speed_noise": 0.03}, {**HISTNOISE, "speed_noise": 0.1}
+# it with time scaling (each window played up to 1.5x faster or slower)
+TSCALE = {**HISTNOISE, "time_scale": 1.5}
+# it with direction noise (the clot's input motion turned by a rotation of N(0, 0.1^2) rad per
+# axis, the target unchanged), and that with the speed noise 0.1 as well (0.1 and 0.3 rad)
+DIRECTION, DIRSPEED = ({**HISTNOISE, "direction_noise": 0.1},
+                       {**SPEED10, "direction_noise": 0.1})
+DIRSPEED3 = {**SPEED10, "direction_noise": 0.3}
+# direction and speed noise 0.1 without the history noise (the signed recipe with both), its
+# best checkpoint picked by a rollout on the validation simulation each epoch
+NOHIST_ROLLOUT = {**SIGNED, "speed_noise": 0.1, "direction_noise": 0.1, "select_by": "rollout"}
+# direction and speed noise with the history noise (``DIRSPEED``), keeping the last epoch's
+# checkpoint (``--select-by last``): ``thrombojax train --recipe robust``
+DIRSPEED_LAST = {**DIRSPEED, "select_by": "last"}
+AXIS = {**WALK, "axis_features": 2.0}  # the default recipe + vessel-axis velocity split
+# it with the wall term in the loss (predictions further through the wall than the truth
+# charged 10x, thrombojax.train.wall_loss): rungs ``axis_wall*``
+AXIS_WALL = {**AXIS, "wall_loss_weight": 10.0}
+AXIS_WALL1 = {**AXIS, "wall_loss_weight": 1.0}  # and weighted 1x: rungs ``axis_wall1*``
+# it with the wall noise and signed wall features of SIGNED: told along the vessel where to go,
+# and across it where the wall is and that a node crossed it (rungs ``axis_signed``)
+AXIS_SIGNED = {**SIGNED, "axis_features": 2.0}
+# it with the vessel-following prior: the step moves the clot along the vessel at its speed
+# and the model learns the rest (rungs ``follow``, ``follow_alone``)
+FOLLOW = {**AXIS, "follow_axis": 2.0}
+# it with swell noise of 5 % and 10 % (the clot scaled about its centroid in the inputs, the
+# target taking half back): rolled out alone, the recipe's clot swells and leaves the vessel
+AXIS_SWELL, AXIS_SWELL10 = {**AXIS, "swell_noise": 0.05}, {**AXIS, "swell_noise": 0.1}
+# it with the rotation's angle from the uniform measure on the rotations (every orientation
+# equally likely; the default angle favours the dataset's own): rungs ``axis_swell10_haar*``
+AXIS_SWELL10_HAAR = {**AXIS_SWELL10, "uniform_rotation": True}
+# the 10 % swell noise with the wall term weighted 3x: rungs ``axis_swell10_wall3*``
+AXIS_SWELL10_WALL3 = {**AXIS_SWELL10, "wall_loss_weight": 3.0}
+# 3 %: on ClotEntry's 5 r clot it moves the ends by about what 5 % does on BendVessel's 3 r clot
+# (0.075 r); 10 % spoilt ClotEntry's one step
+AXIS_SWELL03 = {**AXIS, "swell_noise": 0.03}
+# the 10 % swell noise with the wall noise and signed wall features of AXIS_SIGNED: the swelling
+# taken back clot-wide, a node that crossed the wall taken back where it crossed
+AXIS_SIGNED_SWELL10 = {**AXIS_SIGNED, "swell_noise": 0.1}
+# the clot-wide error weighted 10 times more in the loss: teacher-forced on ClotEntry, the 10 %
+# model's clot-mean acceleration along its motion was off by about ten times the truth's
+# (which is near 0), even on its training simulations; a rollout integrates exactly that error
+AXIS_SWELL10_CM = {**AXIS_SWELL10, "clot_mean_weight": 10.0}
+# it without the history frame (the model cannot carry its last acceleration over: with the
+# history, ``history_gain`` 0.94-1.07 and the clot sped up along the vessel), and it with the
+# history kept but its clot-wide acceleration noised (history noise 0.02 r)
+FOLLOW_NOHIST = {**FOLLOW, "history": 1}
+FOLLOW_HISTNOISE = {**FOLLOW, "history_noise": 0.02}
+# the prior without the history frame, trained only on the frames rollouts run on (windows
+# from the dataset's ``skip_frames`` on: the start from rest, which the model cannot tell
+# from the steady slide without the history, left out)
+FOLLOW_STEADY = {**FOLLOW_NOHIST, "skip_frames": "dataset"}
+# the prior without the history frame, the clot-wide error weighted 10x: the prior turns the
+# clot's motion onto the vessel (with the weight alone, ClotEntry's rollout drifted sideways
+# into the wall and stalled), the weighted loss fits the clot's speed changes along it
+FOLLOW_NOHIST_CM = {**FOLLOW_NOHIST, "clot_mean_weight": 10.0}
+# it with the lateral hold: the clot-wide mean of the model's acceleration across the vessel's
+# axis (2 r) taken out of every step (rollouts drifted sideways first; rungs ``follow_hold_*``)
+FOLLOW_HOLD = {**FOLLOW_NOHIST_CM, "lateral_hold": 2.0}
+# it with the k-step unrolled loss instead (the clot's drift, which a rollout integrates, is what
+# the loss sees: each step's target brings the rollout back onto the true frame): one
+# push-forward step, then 3 steps with gradients through them, k grown over 3 epochs (rungs
+# ``follow_kstep_*``); and 6 steps with gradients, no push-forward (rungs ``follow_kstep6_*``)
+FOLLOW_KSTEP = {**FOLLOW_NOHIST_CM, "pushforward_steps": 1, "rollout_steps": 3,
+                "curriculum_epochs": 3.0}
+FOLLOW_KSTEP6 = {**FOLLOW_NOHIST_CM, "rollout_steps": 6, "curriculum_epochs": 3.0}
+# it with speed noise 0.1 and wall features cut off at 0.5 r: the true clot returns within a
+# few frames to the speed its room in the vessel allows (experiments/results/clot_speed/), so
+# the step is shown a clot off its speed and where the wall is (rungs ``follow_speed_*``)
+FOLLOW_SPEED = {**FOLLOW_NOHIST_CM, "speed_noise": 0.1, "wall_features": 0.5}
+# it with the clot-wide mean of the wall distance as an input too: its rollouts move at an almost
+# constant speed (0.28-0.31 r per frame where the truth's runs 0.20-0.38 with the vessel's width),
+# and the clot's mean clipped wall distance follows the true speed (+0.4 to +0.7 per simulation)
+# where a message-passing step sees only its neighbours' distances (rungs ``follow_room_*``)
+FOLLOW_ROOM = {**FOLLOW_SPEED, "wall_clot_mean": True}
