@@ -63,9 +63,9 @@ def evaluate_runs(runs: list[pathlib.Path], data: str, guards: bool,
     ``guard_options``: keyword arguments of ``build_guards`` (e.g. ``{"coherence": False}``).
     ``step_options``: fields of the learned step replaced at rollout time (e.g.
     ``{"lateral_radius": 0.06}``, the lateral hold on models trained without it).
-    ``rotations`` > 0: every model is rolled out on that many rotated copies of each
-    simulation, turned back (``thrombojax.simulator.rotations``: the identity and
-    ``fixed_rotations(rotations)``, or the ``[R, 3, 3]`` matrices given), all of them members
+    ``rotations`` > 0: every model is rolled out on that many copies of each simulation,
+    turned by ``fixed_rotations(rotations)`` (the first unturned; or by the ``[R, 3, 3]``
+    matrices given) and turned back (``thrombojax.simulator.rotations``), all of them members
     of one ensemble."""
     members = [load_trained(run, which=which) for run in runs]
     trained = members[0]

@@ -65,7 +65,7 @@ class Rung:
     members: int = 1  # > 1: a deep ensemble; member 0 is ``reuse``'s model, the others seeds 1..
     checkpoint: str = "best"  # which checkpoint of each run is evaluated ("best" or "last")
     committee: bool = False  # roll the members out as a committee (their mean step fed back)
-    rotations: int = 0  # > 0: each model also on that many rotated copies, turned back
+    rotations: int = 0  # > 0: each model on that many copies (the first unturned), turned back
 
 
 RUNGS: tuple[Rung, ...] = (

@@ -308,10 +308,10 @@ def _add_rollout(sub) -> None:
                    "containment in the vessel, no clot coherence (default: guards on, their "
                    "corrections reported)")
     p.add_argument("--rotations", type=NN_INT, default=0, metavar="R",
-                   help="a rotation ensemble: also roll the model (every member of an "
-                   "ensemble) out on R rotated copies of each simulation, the identity first, "
-                   "turned back and averaged; the spread is reported as for an ensemble "
-                   "(default 0: off)")
+                   help="a rotation ensemble: roll the model (every member of an ensemble) "
+                   "out on R copies of each simulation, the first unturned, R - 1 turned by "
+                   "fixed random rotations, each turned back and all averaged; the spread is "
+                   "reported as for an ensemble (default 0: off)")
     output_flags(p, "replace existing rollout files in DIR")
     p.set_defaults(func=_run_rollout)
 

@@ -202,9 +202,10 @@ def rollout_run(
         guards: apply the physics guards (containment in the vessel, clot coherence) after every
             step and report how far they moved nodes (False: the model alone).
         rotations: > 0: a rotation ensemble (:mod:`thrombojax.simulator.rotations`): every
-            model (each member of an ensemble) also rolls out on that many rotated copies of
-            each simulation (the identity and ``fixed_rotations(rotations)``), turned back; the
-            prediction is the mean of them all and the spread is reported as for an ensemble.
+            model (each member of an ensemble) rolls out on that many copies of each
+            simulation, turned by ``fixed_rotations(rotations)`` (the first unturned) and
+            turned back; the prediction is the mean of them all and the spread is reported as
+            for an ensemble.
             The single-step table stays that of the model(s) unturned.
     Returns:
         JSON-ready summary (also written to ``rollout.json``; tables in ``rollout.md``, the one
