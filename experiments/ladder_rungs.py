@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import dataclasses
 
+import ladder_recipes
 import numpy as np
 from ladder_recipes import (  # noqa: F401  (re-exported: the ladder's users import them here)
     AXIS,
@@ -47,11 +48,7 @@ from ladder_recipes import (  # noqa: F401  (re-exported: the ladder's users imp
     WALK,
 )
 
-__all__ = ["Rung", "RUNGS", "COMMON", "STUDY_SIZE", "SMALL_MGN", "SIGNED", "HISTNOISE",
-           "WALK", "AXIS", "AXIS_WALL", "AXIS_WALL1", "AXIS_SIGNED", "FOLLOW", "FOLLOW_NOHIST",
-           "FOLLOW_HISTNOISE", "FOLLOW_STEADY", "AXIS_SWELL", "AXIS_SWELL10", "AXIS_SWELL03",
-           "AXIS_SWELL10_WALL3", "AXIS_SWELL10_HAAR", "AXIS_SIGNED_SWELL10", "AXIS_SWELL10_CM",
-           "FOLLOW_NOHIST_CM", "FOLLOW_HOLD", "FOLLOW_KSTEP", "FOLLOW_KSTEP6", "FOLLOW_SPEED"]
+__all__ = ["Rung", "RUNGS", *ladder_recipes.__all__]
 
 
 @dataclasses.dataclass(frozen=True)

@@ -51,8 +51,7 @@ from thrombojax.eval.truth_tables import rollout_markdown
 from thrombojax.io.export import export_trajectory
 from thrombojax.io.hdf5 import Simulation, open_dataset, write_dataset
 from thrombojax.io.outputs import atomic_path, atomic_write_text, check_targets, safe_stems
-from thrombojax.simulator.ensemble import stack_params
-from thrombojax.simulator.rotations import RotatedStep, rotation_members
+from thrombojax.simulator.rotations import RotatedStep, rotated_params, rotation_members
 from thrombojax.train.ensemble import load_ensemble
 from thrombojax.train.guards import check_finite, check_in_box
 from thrombojax.train.state import load_trained
@@ -220,8 +219,9 @@ def rollout_run(
         params = trained.params
     step, n_members = trained.step, members.n_members if ensemble else 1
     if rotations:  # each model on each turned copy: one member per (model, rotation)
-        step, params = RotatedStep.of(step), rotation_members(
-            params if ensemble else stack_params([params]), rotations)
+        step = RotatedStep.of(step)
+        params = (rotation_members(params, rotations) if ensemble
+                  else rotated_params(params, rotations))
         n_members *= int(rotations)
     ds = open_dataset(dataset_path)
     check_units(trained.config, ds, run_dir=run_dir, dataset_path=dataset_path)

@@ -39,15 +39,7 @@ import numpy as np
 
 from thrombojax.errors import ConfigError
 from thrombojax.models.registry import Surrogate
-from thrombojax.simulator.ensemble import (
-    EnsembleRollout,
-    _guard_mean,
-    _member_batch,
-    check_rollout_start,
-    ensemble_jit,
-    n_members,
-    plain_unroll,
-)
+from thrombojax.simulator.ensemble import EnsembleRollout, ensemble_rollout, n_members
 from thrombojax.simulator.rollout import as_step
 from thrombojax.simulator.step import LearnedStep, StepOutput
 from thrombojax.types import TargetStats, clot_mask
@@ -103,10 +95,11 @@ def fixed_rotations(n: int, seed: int = 0) -> np.ndarray:
     return np.asarray(out, np.float32)
 
 
-def rotated_params(params: Any, rotations: Any) -> dict:
-    """The stacked member parameters of a rotation ensemble: ``{"inner": params`` repeated M
-    times ``, "rotation": rotations [M, 3, 3]}`` (the leading member axis of
-    :func:`thrombojax.simulator.ensemble.ensemble_rollout`)."""
+def _checked_rotations(rotations: Any) -> jax.Array:
+    """``[R, 3, 3]`` float32 rotations from an int R (:func:`fixed_rotations`) or matrices,
+    checked: a ConfigError for another shape or a matrix that is not a rotation."""
+    if isinstance(rotations, int | np.integer) and not isinstance(rotations, bool):
+        rotations = fixed_rotations(int(rotations))
     rotations = jnp.asarray(rotations, jnp.float32)
     if rotations.ndim != 3 or rotations.shape[1:] != (3, 3) or rotations.shape[0] < 1:
         raise ConfigError(f"rotation ensemble: rotations must be [M, 3, 3] with M >= 1, got "
@@ -115,9 +108,18 @@ def rotated_params(params: Any, rotations: Any) -> dict:
     if not float(ortho) < 1e-4 or not bool((jnp.linalg.det(rotations) > 0).all()):
         raise ConfigError("rotation ensemble: every matrix must be a rotation (orthonormal, "
                           "determinant +1)")
-    m = rotations.shape[0]
+    return rotations
+
+
+def rotated_params(params: Any, rotations: Any) -> dict:
+    """The stacked member parameters of one model's rotation ensemble: ``{"inner": params``
+    repeated M times ``, "rotation": rotations [M, 3, 3]}`` (the leading member axis of
+    :func:`thrombojax.simulator.ensemble.ensemble_rollout`). ``rotations``: ``[M, 3, 3]`` or
+    an int M (:func:`fixed_rotations`)."""
+    turned = _checked_rotations(rotations)
+    m = turned.shape[0]
     inner = jax.tree.map(lambda x: jnp.broadcast_to(jnp.asarray(x), (m, *jnp.shape(x))), params)
-    return {"inner": inner, "rotation": rotations}
+    return {"inner": inner, "rotation": turned}
 
 
 def rotation_members(params_stack: Any, rotations: Any) -> dict:
@@ -126,9 +128,7 @@ def rotation_members(params_stack: Any, rotations: Any) -> dict:
     1``), for :class:`RotatedStep` in
     :func:`thrombojax.simulator.ensemble.ensemble_rollout`. ``rotations``: ``[R, 3, 3]`` or an
     int R (:func:`fixed_rotations`)."""
-    if isinstance(rotations, int | np.integer) and not isinstance(rotations, bool):
-        rotations = fixed_rotations(int(rotations))
-    turned = rotated_params({}, rotations)["rotation"]  # checked [R, 3, 3]
+    turned = _checked_rotations(rotations)
     r = int(turned.shape[0])
     m = n_members(params_stack)
     inner = jax.tree.map(lambda x: jnp.repeat(jnp.asarray(x), r, axis=0), params_stack)
@@ -151,7 +151,9 @@ def rotation_rollout(
     member_batch: int | None = None,
     guard_mean: bool = False,
 ) -> EnsembleRollout:
-    """Roll one model out on M rotated copies of the start, turned back, in one program.
+    """Roll one model out on M rotated copies of the start, turned back, in one program:
+    :func:`~thrombojax.simulator.ensemble.ensemble_rollout` of :class:`RotatedStep` with
+    :func:`rotated_params`.
 
     Args:
         model, params, stats: the surrogate (or its learned step), its variables, statistics.
@@ -165,15 +167,6 @@ def rotation_rollout(
     Returns:
         The :class:`~thrombojax.simulator.ensemble.EnsembleRollout`, every member turned back.
     """
-    step = RotatedStep.of(as_step(model))
-    x0_prev, x0, node_type, mask = check_rollout_start(step, n_steps, x0_prev, x0, node_type,
-                                                       mask, what="rotation ensemble")
-    if isinstance(rotations, int | np.integer) and not isinstance(rotations, bool):
-        rotations = fixed_rotations(int(rotations))
-    stacked = rotated_params(params, rotations)
-    m = int(stacked["rotation"].shape[0])
-    return ensemble_jit(step, stacked, stats, x0_prev, x0, node_type, mask, context,
-                        int(n_steps), params_batched=True, state_batched=False,
-                        rollout_fn=rollout_fn or plain_unroll,
-                        member_batch=_member_batch(member_batch, m),
-                        guard_mean=_guard_mean(guard_mean, context))
+    return ensemble_rollout(RotatedStep.of(as_step(model)), rotated_params(params, rotations),
+                            stats, x0_prev, x0, node_type, mask, n_steps, rollout_fn=rollout_fn,
+                            context=context, member_batch=member_batch, guard_mean=guard_mean)
