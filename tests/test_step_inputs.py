@@ -9,7 +9,15 @@ from scipy.spatial.transform import Rotation
 
 from thrombojax.errors import ConfigError
 from thrombojax.graph.frame import vessel_frame
-from thrombojax.graph.wall_nodes import nearest_vessel_node, wall_node_features
+from thrombojax.graph.wall_nodes import (
+    WALL_NORMAL_NODES,
+    local_wall_plane,
+    nearest_vessel_node,
+    pairwise_sq_distances,
+    tie_key,
+    wall_node_features,
+    wall_patches,
+)
 from thrombojax.io.hdf5 import open_dataset
 from thrombojax.models.registry import create_model, get_config, identity_stats
 from thrombojax.simulator.step import make_step, target_acceleration
@@ -233,3 +241,43 @@ def test_cli_trains_with_the_default_recipe_and_reloads_the_step(tmp_path):
     sims = report["simulations"]
     assert sims and all("NaN" not in json.dumps(r["summary"]) for r in sims.values())
     assert all(r["n_steps"] > 0 for r in sims.values())
+
+
+def _differing(patch_a, patch_b) -> int:
+    """Rows of two wall searches that hold different sets of nodes."""
+    rows = zip(np.asarray(patch_a).tolist(), np.asarray(patch_b).tolist(), strict=True)
+    return sum(set(a) != set(b) for a, b in rows)
+
+
+def test_wall_search_picks_the_same_nodes_in_every_orientation(frames):
+    """A tube's wall has rings of vessel nodes at equal distances: ranked by the raw squared
+    distances, rounding in turned coordinates picks other nearest nodes (and other wall
+    normals); ranked by tie_key, the same nodes, so the wall normals turn with the vessel."""
+    pos, nt = frames
+    x, mask = pos[1], np.ones(len(nt), bool)
+    vessel = nt == NodeType.VESSEL
+
+    def plain(y):  # the search before tie_key
+        ranked = np.where(vessel[None, :], -np.asarray(pairwise_sq_distances(y)), -np.inf)
+        return jax.lax.top_k(ranked, WALL_NORMAL_NODES)[1]
+
+    turned = []
+    for rot in Rotation.random(4, random_state=0).as_matrix().astype(np.float32):
+        y = x @ rot.T + SHIFT
+        before = _differing(plain(x), plain(y))
+        after = _differing(wall_patches(x, nt, mask), wall_patches(y, nt, mask))
+        turned.append((before, after))
+        _, n0 = local_wall_plane(x, nt, mask)
+        _, n1 = local_wall_plane(y, nt, mask)
+        dots = np.abs(np.sum((np.asarray(n0) @ rot.T) * np.asarray(n1), axis=-1))[vessel]
+        assert dots.min() > 0.999, dots.min()  # every vessel normal turned with the vessel
+    assert all(after == 0 for _, after in turned), turned
+    assert sum(before for before, _ in turned) > 0, turned  # the tiny tube has such ties
+
+
+def test_tie_key_orders_like_the_distances_and_merges_rounding():
+    sq = np.array([0.0, 1e-6, 0.25, 0.25 * (1 + 1e-6), 0.2505, 1.0, 4.0], np.float32)
+    key = np.asarray(tie_key(sq))
+    assert np.all(np.diff(key[[0, 1, 2, 4, 5, 6]]) > 0)  # distinct distances keep their order
+    assert key[2] == key[3]  # a rounding-level difference is a tie
+    assert np.all(key < 2**20) and np.all(key == np.round(key))

@@ -135,8 +135,8 @@ def _add_train(sub) -> None:
                    "without guards, worse than history on ClotEntry) or 'study' (the study's "
                    "single-step recipe, TrainConfig's defaults)")
     p.add_argument("--frame", choices=("global", "vessel"), help="frame of the learned step: "
-                   "'vessel' works in the rigid vessel's principal axes (exactly invariant to "
-                   "the vessel's orientation); default 'global'")
+                   "'vessel' works in the rigid vessel's principal axes (invariant to the "
+                   "vessel's orientation); default 'global'")
     p.add_argument("--history", type=POS_INT, help="frames before t the learned step reads: "
                    "1 (default) the velocity alone; H >= 2 also the H - 1 accelerations before "
                    "t (they show the drive and damping that the velocity does not)")

@@ -7,8 +7,10 @@ positive (the bend of a vessel is asymmetric), the third axis ``e1 x e2`` so tha
 rotation (det +1). A global rotation ``R`` and translation ``t`` of a simulation move the frame
 with it (``origin -> R origin + t``, ``axes -> R axes``), so coordinates expressed in it
 (:meth:`VesselFrame.points`, :meth:`VesselFrame.vectors`) are the same for every orientation:
-a model that sees only them is exactly invariant to the vessel's orientation, whatever
-rotations it was trained on.
+a model that sees only them is invariant to the vessel's orientation up to rounding, whatever
+rotations it was trained on. (Inputs that search the wall for the nearest vessel nodes rank
+equal distances by node index, :func:`thrombojax.graph.wall_nodes.tie_key`, so that rounding
+in turned coordinates does not pick other nodes.)
 
 Limits (documented in ``docs/rollouts.md``): an axis whose third moment is zero (a vessel
 symmetric about the plane normal to it) has no preferred sign; only the third axis may be such

@@ -24,7 +24,8 @@ from thrombojax.types import NodeType, clot_mask
 __all__ = ["WALL_NODE_FEATURES", "WALL_NORMAL_NODES", "WALL_PLANE_NODES", "DENSE_PLANE_NODES",
            "clipped_distance_direction",
            "nearest_vessel_node", "wall_node_features", "clot_wall_mean", "local_wall_plane",
-           "signed_wall_features", "wall_patches", "vessel_normals", "pairwise_sq_distances"]
+           "signed_wall_features", "wall_patches", "vessel_normals", "pairwise_sq_distances",
+           "tie_key", "TIE_BITS"]
 
 WALL_NODE_FEATURES: int = 4
 """Width of :func:`wall_node_features`: clipped distance / cutoff and a 3-D direction."""
@@ -147,8 +148,32 @@ def wall_patches(
         raise ValueError(f"wall patches: need k_normal >= 1, got {k_normal!r}")
     x = jax.lax.stop_gradient(x)
     vessel = jnp.asarray(mask, bool) & (jnp.asarray(node_type) == NodeType.VESSEL)
-    ranked = jnp.where(vessel[None, :], -pairwise_sq_distances(x), -jnp.inf)
+    ranked = jnp.where(vessel[None, :], -tie_key(pairwise_sq_distances(x)), -jnp.inf)
     return jax.lax.top_k(ranked, min(k_normal, x.shape[0]))[1]
+
+
+TIE_BITS: int = 13
+"""Low mantissa bits :func:`tie_key` drops: squared distances within about ``2**-10`` (0.1 %)
+of each other rank as equal."""
+
+
+def tie_key(sq: jax.Array) -> jax.Array:
+    """A ranking key of squared distances ``sq >= 0`` that breaks ties the same way in every
+    orientation. Jittable.
+
+    A wall mesh has many vessel nodes at exactly the same distance from a node (rings of a
+    tube). Computed in turned coordinates, those distances differ by rounding, so a plain
+    ``top_k`` picked a different set of nearest nodes for a quarter of BendVessel's nodes at
+    each orientation, and a wall normal could turn by 60 degrees (the patch fell on one ring):
+    the wall and vessel-axis features, and a step in the vessel's frame, were not invariant to
+    a rotation. The key drops the last :data:`TIE_BITS` bits of the float32 mantissa (for
+    non-negative floats the bit pattern orders like the value), so rounding-level differences
+    become exact ties, which ``lax.top_k`` breaks by the lower node index, an order no rotation
+    changes. A tie whose rounding straddles a bin edge can still split (about one in a
+    thousand); distances closer than the bin rank by index instead of by distance.
+    """
+    bits = jax.lax.bitcast_convert_type(jnp.asarray(sq, jnp.float32), jnp.int32)
+    return jnp.right_shift(bits, TIE_BITS).astype(jnp.float32)  # < 2**20: exact in float32
 
 
 def _check_plane(n: int, k_normal: int = 3, k_avg: int = 1) -> None:

@@ -116,8 +116,8 @@ class TrainConfig:
             (0: k from the start). Validation always uses the final k.
         frame: the frame the learned step works in: ``"global"`` (the dataset's axes) or
             ``"vessel"`` (the rigid vessel's principal axes,
-            :func:`thrombojax.graph.frame.vessel_frame`: exactly invariant to the vessel's
-            orientation).
+            :func:`thrombojax.graph.frame.vessel_frame`: invariant to the vessel's orientation up
+            to rounding).
         wall_features: cutoff, in vessel radii, of the per-node distance and direction to the
             nearest vessel node appended to the clot nodes' inputs (0: off;
             :func:`thrombojax.graph.wall_nodes.wall_node_features`).
