@@ -5,13 +5,14 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["COMMON", "STUDY_SIZE", "SMALL_MGN", "SIGNED", "HISTNOISE", "WALK", "AXIS", "AXIS_WALL",
-           "AXIS_WALL1", "AXIS_SIGNED", "FOLLOW", "FOLLOW_NOHIST", "FOLLOW_HISTNOISE",
-           "FOLLOW_STEADY", "AXIS_SWELL", "AXIS_SWELL10", "AXIS_SWELL03", "AXIS_SWELL10_WALL3",
-           "AXIS_SWELL10_HAAR", "AXIS_SIGNED_SWELL10", "AXIS_SWELL10_CM", "FOLLOW_NOHIST_CM",
-           "FOLLOW_HOLD", "FOLLOW_KSTEP", "FOLLOW_KSTEP6", "FOLLOW_SPEED", "NOISE", "ROTATION",
-           "HISTORY", "DIRECTION", "DIRSPEED", "DIRSPEED3", "DIRSPEED_LAST", "FOLLOW_ROOM",
-           "NOHIST_ROLLOUT", "SPEED03", "SPEED10", "TSCALE"]
+__all__ = ["COMMON", "STUDY_SIZE", "SMALL_MGN", "SIGNED", "HISTNOISE", "WALK", "AXIS",
+           "AXIS_WALL", "AXIS_WALL1", "AXIS_SIGNED", "FOLLOW", "FOLLOW_NOHIST",
+           "FOLLOW_HISTNOISE", "FOLLOW_STEADY", "AXIS_SWELL", "AXIS_SWELL10", "AXIS_SWELL03",
+           "AXIS_SWELL10_WALL3", "AXIS_SWELL10_HAAR", "AXIS_SWELL10_FRAME", "AXIS_SIGNED_SWELL10",
+           "AXIS_SWELL10_CM", "FOLLOW_NOHIST_CM", "FOLLOW_NOHIST_CM_FRAME", "FOLLOW_HOLD",
+           "FOLLOW_KSTEP", "FOLLOW_KSTEP6", "FOLLOW_SPEED", "NOISE", "ROTATION", "HISTORY",
+           "DIRECTION", "DIRSPEED", "DIRSPEED3", "DIRSPEED_LAST", "FOLLOW_ROOM", "NOHIST_ROLLOUT",
+           "SPEED03", "SPEED10", "TSCALE"]
 
 SMALL_MGN = {"hidden": 32, "processor_size": 5, "max_neighbors": 12}
 _SCHEDULE = {"max_rotation": 0.0, "warmup_epochs": 2.0}
@@ -64,6 +65,9 @@ AXIS_SWELL, AXIS_SWELL10 = {**AXIS, "swell_noise": 0.05}, {**AXIS, "swell_noise"
 # it with the rotation's angle from the uniform measure on the rotations (every orientation
 # equally likely; the default angle favours the dataset's own): rungs ``axis_swell10_haar*``
 AXIS_SWELL10_HAAR = {**AXIS_SWELL10, "uniform_rotation": True}
+# it in the rigid vessel's own frame (``--frame vessel``: exactly invariant to the orientation,
+# so every turned copy of a simulation rolls out alike): rungs ``axis_swell10_frame*``
+AXIS_SWELL10_FRAME = {**AXIS_SWELL10, "frame": "vessel"}
 # the 10 % swell noise with the wall term weighted 3x: rungs ``axis_swell10_wall3*``
 AXIS_SWELL10_WALL3 = {**AXIS_SWELL10, "wall_loss_weight": 3.0}
 # 3 %: on ClotEntry's 5 r clot it moves the ends by about what 5 % does on BendVessel's 3 r clot
@@ -89,6 +93,8 @@ FOLLOW_STEADY = {**FOLLOW_NOHIST, "skip_frames": "dataset"}
 # clot's motion onto the vessel (with the weight alone, ClotEntry's rollout drifted sideways
 # into the wall and stalled), the weighted loss fits the clot's speed changes along it
 FOLLOW_NOHIST_CM = {**FOLLOW_NOHIST, "clot_mean_weight": 10.0}
+# it in the rigid vessel's own frame (each ClotEntry vessel its own): rungs ``follow_cm_frame*``
+FOLLOW_NOHIST_CM_FRAME = {**FOLLOW_NOHIST_CM, "frame": "vessel"}
 # it with the lateral hold: the clot-wide mean of the model's acceleration across the vessel's
 # axis (2 r) taken out of every step (rollouts drifted sideways first; rungs ``follow_hold_*``)
 FOLLOW_HOLD = {**FOLLOW_NOHIST_CM, "lateral_hold": 2.0}

@@ -15,6 +15,7 @@ from ladder_recipes import (  # noqa: F401  (re-exported: the ladder's users imp
     AXIS_SWELL03,
     AXIS_SWELL10,
     AXIS_SWELL10_CM,
+    AXIS_SWELL10_FRAME,
     AXIS_SWELL10_HAAR,
     AXIS_SWELL10_WALL3,
     AXIS_WALL,
@@ -31,6 +32,7 @@ from ladder_recipes import (  # noqa: F401  (re-exported: the ladder's users imp
     FOLLOW_KSTEP6,
     FOLLOW_NOHIST,
     FOLLOW_NOHIST_CM,
+    FOLLOW_NOHIST_CM_FRAME,
     FOLLOW_ROOM,
     FOLLOW_SPEED,
     FOLLOW_STEADY,
@@ -261,6 +263,18 @@ RUNGS: tuple[Rung, ...] = (
          checkpoint="last"),
     Rung("axis_swell10_haar_seeds3_rot4", AXIS_SWELL10_HAAR, reuse="axis_swell10_haar",
          members=3, checkpoint="last", rotations=4),
+    # it in the vessel's frame: seed 0 alone and guarded, seeds 0-1 / 0-2 alone and guarded
+    Rung("axis_swell10_frame", AXIS_SWELL10_FRAME, checkpoint="last"),
+    Rung("axis_swell10_frame_guards", AXIS_SWELL10_FRAME, guards=True,
+         reuse="axis_swell10_frame", checkpoint="last"),
+    Rung("axis_swell10_frame_seeds", AXIS_SWELL10_FRAME, reuse="axis_swell10_frame", members=2,
+         checkpoint="last"),
+    Rung("axis_swell10_frame_ens_guards", AXIS_SWELL10_FRAME, guards=True,
+         reuse="axis_swell10_frame", members=2, checkpoint="last"),
+    Rung("axis_swell10_frame_seeds3", AXIS_SWELL10_FRAME, reuse="axis_swell10_frame",
+         members=3, checkpoint="last"),
+    Rung("axis_swell10_frame_seeds3_guards", AXIS_SWELL10_FRAME, guards=True,
+         reuse="axis_swell10_frame", members=3, checkpoint="last"),
     # it with the wall term weighted 3x: seed 0 (the last checkpoint alone and guarded), seeds
     # 0-1 as an ensemble alone and guarded
     Rung("axis_swell10_wall3", AXIS_SWELL10_WALL3, checkpoint="last"),
@@ -303,6 +317,10 @@ RUNGS: tuple[Rung, ...] = (
     Rung("follow_nohist_cm_last", FOLLOW_NOHIST_CM, checkpoint="last"),
     Rung("follow_nohist_cm_last_guards", FOLLOW_NOHIST_CM, guards=True,
          reuse="follow_nohist_cm_last", checkpoint="last"),
+    # it in the vessel's frame: last checkpoint, alone and guarded
+    Rung("follow_cm_frame_last", FOLLOW_NOHIST_CM_FRAME, checkpoint="last"),
+    Rung("follow_cm_frame_last_guards", FOLLOW_NOHIST_CM_FRAME, guards=True,
+         reuse="follow_cm_frame_last", checkpoint="last"),
     # its seeds 0-2 as an ensemble, guarded and alone (each member also scored alone: the
     # seed spread)
     Rung("follow_nohist_cm_last_ens3_guards", FOLLOW_NOHIST_CM, guards=True,

@@ -20,9 +20,11 @@
 * ``"rollout"``: the ladder's ``rotation`` rung, the default until the history recipe was
   measured at equal CPU time: input noise (0.01 vessel radii), one push-forward step, a 3-step
   unrolled loss grown by a curriculum over 6 epochs, random rotations up to pi. (The rigid
-  vessel's frame, ``frame="vessel"``, is exactly invariant to orientation and gave the best
+  vessel's frame, ``frame="vessel"``, is invariant to orientation and gave the best
   single-step error, but its k-step training diverged in the ladder, with and without gradient
-  clipping; it stays an option.)
+  clipping; it stays an option. With ``axis`` and ``--swell-noise 0.1`` it gives BendVessel's
+  best models, but does worse than the global frame on a vessel no model saw:
+  ``experiments/results/ladder_budget/bendvessel_frame/``.)
 * ``"robust"``: ``history`` plus what keeps the model alone (no guards) on its path: wall
   noise (clot nodes near the wall pushed through it, the target bringing them back, 0.1
   vessel radii) with signed wall features (the signed distance to the wall and its normal,
