@@ -263,7 +263,8 @@ RUNGS: tuple[Rung, ...] = (
          checkpoint="last"),
     Rung("axis_swell10_haar_seeds3_rot4", AXIS_SWELL10_HAAR, reuse="axis_swell10_haar",
          members=3, checkpoint="last", rotations=4),
-    # it in the vessel's frame: seed 0 alone and guarded, seeds 0-1 / 0-2 alone and guarded
+    # it in the vessel's frame: seed 0 alone and guarded, seeds 0-1 / 0-2 alone and guarded,
+    # seeds 0-4 alone (each also scored alone)
     Rung("axis_swell10_frame", AXIS_SWELL10_FRAME, checkpoint="last"),
     Rung("axis_swell10_frame_guards", AXIS_SWELL10_FRAME, guards=True,
          reuse="axis_swell10_frame", checkpoint="last"),
@@ -275,6 +276,8 @@ RUNGS: tuple[Rung, ...] = (
          members=3, checkpoint="last"),
     Rung("axis_swell10_frame_seeds3_guards", AXIS_SWELL10_FRAME, guards=True,
          reuse="axis_swell10_frame", members=3, checkpoint="last"),
+    Rung("axis_swell10_frame_seeds5", AXIS_SWELL10_FRAME, reuse="axis_swell10_frame",
+         members=5, checkpoint="last"),
     # it with the wall term weighted 3x: seed 0 (the last checkpoint alone and guarded), seeds
     # 0-1 as an ensemble alone and guarded
     Rung("axis_swell10_wall3", AXIS_SWELL10_WALL3, checkpoint="last"),

@@ -280,4 +280,4 @@ def test_tie_key_orders_like_the_distances_and_merges_rounding():
     key = np.asarray(tie_key(sq))
     assert np.all(np.diff(key[[0, 1, 2, 4, 5, 6]]) > 0)  # distinct distances keep their order
     assert key[2] == key[3]  # a rounding-level difference is a tie
-    assert np.all(key < 2**20) and np.all(key == np.round(key))
+    assert np.all(key < 2**18) and np.all(key == np.round(key))

@@ -24,10 +24,9 @@ The step, in scaled [-1, 1] coordinates::
 
 Frames: ``make_step(model, frame="vessel")`` runs the model in the frame of the rigid vessel
 (:func:`thrombojax.graph.frame.vessel_frame`): positions and velocities enter in that frame's
-coordinates and the predicted acceleration is rotated back, so the step is invariant to the
-vessel's global orientation up to rounding (rotations never seen in training included; the wall
-searches rank ties by :func:`thrombojax.graph.wall_nodes.tie_key`). ``stats`` are then
-statistics of the acceleration in that frame (``compute_target_stats(..., frame="vessel")``),
+coordinates and the acceleration is rotated back: invariant to the vessel's orientation up to
+rounding (unseen rotations included; wall searches rank ties by ``wall_nodes.tie_key``). ``stats``
+are statistics of the acceleration in that frame (``compute_target_stats(..., frame="vessel")``),
 and :meth:`LearnedStep.normalized_target` is what the training loss compares ``output`` with.
 
 Wall features: ``make_step(model, wall_cutoff=c)`` (``c > 0``, scaled units) appends to every
