@@ -65,8 +65,8 @@ AXIS_SWELL, AXIS_SWELL10 = {**AXIS, "swell_noise": 0.05}, {**AXIS, "swell_noise"
 # it with the rotation's angle from the uniform measure on the rotations (every orientation
 # equally likely; the default angle favours the dataset's own): rungs ``axis_swell10_haar*``
 AXIS_SWELL10_HAAR = {**AXIS_SWELL10, "uniform_rotation": True}
-# it in the rigid vessel's own frame (``--frame vessel``: exactly invariant to the orientation,
-# so every turned copy of a simulation rolls out alike): rungs ``axis_swell10_frame*``
+# it in the rigid vessel's own frame (``--frame vessel``: invariant to the orientation up to
+# rounding, so a turned simulation enters as the dataset's own): rungs ``axis_swell10_frame*``
 AXIS_SWELL10_FRAME = {**AXIS_SWELL10, "frame": "vessel"}
 # the 10 % swell noise with the wall term weighted 3x: rungs ``axis_swell10_wall3*``
 AXIS_SWELL10_WALL3 = {**AXIS_SWELL10, "wall_loss_weight": 3.0}
