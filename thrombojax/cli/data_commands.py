@@ -151,11 +151,13 @@ def _add_generate(sub) -> None:
         description=(
             "Simulate a clot driven through a rigid vessel (explicit FEM in JAX) for every "
             "simulation of a preset and write the HDF5 dataset. Presets: bendvessel (20 rotated "
-            "bent tubes, 41 frames), clotentry (10 tortuous vessels, 201 frames), "
-            "bendvessel-tiny, clotentry-tiny (for tests)."
+            "bent tubes, 41 frames), bendvessel-shapes (20 bent tubes, each with its own outlet "
+            "leg, bend radius and angle, 41 frames), clotentry (10 tortuous vessels, 201 "
+            "frames), bendvessel-tiny, clotentry-tiny (for tests)."
         ),
     )
-    p.add_argument("preset", help="bendvessel | clotentry | bendvessel-tiny | clotentry-tiny")
+    p.add_argument("preset", help="bendvessel | bendvessel-shapes | clotentry | bendvessel-tiny | "
+                   "clotentry-tiny")
     p.add_argument("--out", required=True, help="output .h5 file")
     p.add_argument("--sims", type=POS_INT, default=None,
                    help="number of simulations (default: all)")

@@ -2,8 +2,9 @@
 
 Per simulation ``index`` the generator ``np.random.default_rng([seed, index])`` draws, in
 this order: clot start, roll, oversize, friction, drive ratio, flow speed, Young's modulus,
-Poisson's ratio; a tortuous vessel uses its own stream ``[seed, index, 1]``. So a simulation
-is reproducible on its own, whatever else is generated with it.
+Poisson's ratio; a tortuous vessel, and a bend whose shape is drawn per simulation
+(``Preset.leg_out_range`` and its siblings), use their own stream ``[seed, index, 1]``. So a
+simulation is reproducible on its own, whatever else is generated with it.
 
 Contact and drive are sized from a closed-form estimate of the wall pressure of the placed
 clot: an incompressible Neo-Hookean cylinder with radial stretch ``1/oversize`` and axial
@@ -63,17 +64,11 @@ def build_vessel(preset: Preset, index: int, seed: int) -> tuple[geo.Centreline,
     slips back across the outlet plane would land deep inside the wall.
     """
     if preset.kind == "bend":
-        pts = geo.bent_tube_points(
-            preset.leg_in, preset.leg_out, preset.bend_radius, preset.bend_angle_deg, preset.spacing
-        )
+        shape = _bend_shape(preset, index, seed)
+        pts = geo.bent_tube_points(preset.leg_in, shape["leg_out"], shape["bend_radius"],
+                                   shape["bend_angle_deg"], preset.spacing)
         radius = np.full(len(pts), preset.radius)
-        attrs = {
-            "vessel": "bent tube",
-            "leg_in": preset.leg_in,
-            "leg_out": preset.leg_out,
-            "bend_radius": preset.bend_radius,
-            "bend_angle_deg": preset.bend_angle_deg,
-        }
+        attrs = {"vessel": "bent tube", "leg_in": preset.leg_in, **shape}
     else:
         rng = np.random.default_rng([seed, index, 1])
         clearance = 2.0 * max(preset.radius, preset.radius_end) * (1 + preset.wobble) + 0.5
@@ -102,6 +97,16 @@ def build_vessel(preset: Preset, index: int, seed: int) -> tuple[geo.Centreline,
 
 def _draw(rng: np.random.Generator, bounds: tuple[float, float]) -> float:
     return float(rng.uniform(bounds[0], bounds[1]))
+
+
+def _bend_shape(preset: Preset, index: int, seed: int) -> dict[str, float]:
+    """The bend's outlet leg, bend radius and angle of simulation ``index``: the preset's, or
+    drawn from its ``*_range`` fields (stream ``[seed, index, 1]``, in that order)."""
+    rng = np.random.default_rng([seed, index, 1])
+    pick = lambda bounds, fixed: fixed if bounds is None else _draw(rng, bounds)  # noqa: E731
+    return {"leg_out": pick(preset.leg_out_range, preset.leg_out),
+            "bend_radius": pick(preset.bend_radius_range, preset.bend_radius),
+            "bend_angle_deg": pick(preset.bend_angle_range, preset.bend_angle_deg)}
 
 
 def build_case(preset: Preset, index: int, seed: int) -> Case:

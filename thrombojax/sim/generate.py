@@ -102,8 +102,20 @@ def _run_kwargs(preset: Preset) -> dict:
     }
 
 
+def _one_vessel(preset: Preset, cases: list[Case]) -> None:
+    """Refuse a batch whose cases do not share one vessel (the run takes one centreline)."""
+    first = np.asarray(cases[0].centreline.points)
+    for case in cases[1:]:
+        other = np.asarray(case.centreline.points)
+        if other.shape != first.shape or not np.array_equal(other, first):
+            raise ConfigError(
+                f"preset {preset.name!r}: simulations {cases[0].index} and {case.index} have "
+                "different vessels and cannot run in one batch; use batch_size 1")
+
+
 def compile_cases(preset: Preset, cases: list[Case]):
     """Compile the run for these cases' shapes; returns ``(compiled, args, seconds)``."""
+    _one_vessel(preset, cases)
     cl = jax.tree.map(jnp.asarray, cases[0].centreline)
     tets = jnp.asarray(cases[0].tets)
     fn, params = (run, cases[0].params) if len(cases) == 1 else (run_batch, stack_cases(cases))
@@ -128,6 +140,7 @@ def simulate_cases(preset: Preset, cases: list[Case], compiled=None) -> list[Sim
     if compiled is None:
         compiled = fresh
     else:
+        _one_vessel(preset, cases)
         cl = jax.tree.map(jnp.asarray, cases[0].centreline)
         params = cases[0].params if len(cases) == 1 else stack_cases(cases)
         args = (params, cl, jnp.asarray(cases[0].tets))
@@ -195,7 +208,8 @@ def generate_dataset(
         raise ConfigError(f"generate: --out {out}: a dataset file must end in .h5 or .hdf5")
     png = out.with_suffix(".png")
     check_targets([out, png] if plot else [out], force=force)
-    first = compiled = None
+    first = None
+    compiled = {}  # one compiled run per centreline length (a bend drawn per case varies it)
     bar = tqdm(total=n, desc=f"generate {preset.name}", unit="sim", disable=not progress)
     with DatasetWriter(
         out,
@@ -211,9 +225,10 @@ def generate_dataset(
             # pad a short last batch with repeats so every batch has one compiled shape
             padded = idx + [idx[-1]] * (min(preset.batch_size, n) - len(idx))
             cases = [build_case(preset, i, seed) for i in padded]
-            if compiled is None:
-                compiled = compile_cases(preset, cases)[0]
-            for sim in simulate_cases(preset, cases, compiled)[: len(idx)]:
+            key = np.shape(cases[0].centreline.points)
+            if key not in compiled:
+                compiled[key] = compile_cases(preset, cases)[0]
+            for sim in simulate_cases(preset, cases, compiled[key])[: len(idx)]:
                 w.add(sim)
                 first = first or sim
                 bar.update(1)

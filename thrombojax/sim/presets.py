@@ -27,6 +27,11 @@ class Preset:
             Abaqus time and skipped frames, :data:`thrombojax.study.DATASETS`).
         radius: nominal (inlet) vessel radius.
         leg_in, leg_out, bend_radius, bend_angle_deg: bent tube (kind "bend").
+        leg_out_range, bend_radius_range, bend_angle_range: None (default: every simulation
+            has the one tube above) or ``(low, high)``: each simulation of a bend draws its own
+            value (stream ``[seed, index, 1]``; a new vessel shape per simulation, same node
+            count). Such presets run one simulation at a time (``batch_size`` 1: the cases of
+            a batch share one vessel).
         rotation_step_deg, rotation_axis: simulation i is rotated by ``i * step`` about the axis.
         length, min_bend_radius, radius_end, wobble: tortuous vessel (kind "tortuous").
         spacing: centreline point spacing; wall_rings, wall_around: wall point rings.
@@ -59,6 +64,9 @@ class Preset:
     leg_out: float = 10.0
     bend_radius: float = 3.0
     bend_angle_deg: float = 90.0
+    leg_out_range: tuple[float, float] | None = None
+    bend_radius_range: tuple[float, float] | None = None
+    bend_angle_range: tuple[float, float] | None = None
     rotation_step_deg: float = 10.0
     rotation_axis: str = "x"
     length: float = 60.0
@@ -98,6 +106,21 @@ class Preset:
     def __post_init__(self) -> None:
         if self.study not in DATASETS:
             raise ConfigError(f"preset {self.name!r}: study must be one of {list(DATASETS)}")
+        for field in self.shape_ranges():
+            low, high = getattr(self, field)
+            if not 0 < low <= high:
+                raise ConfigError(f"preset {self.name!r}: {field} must be (low, high) with "
+                                  f"0 < low <= high, got {getattr(self, field)}")
+        if self.shape_ranges() and (self.kind != "bend" or self.batch_size != 1):
+            raise ConfigError(
+                f"preset {self.name!r}: {', '.join(self.shape_ranges())} draw a vessel per "
+                "simulation: they need kind 'bend' and batch_size 1 (the cases of a batch share "
+                f"one vessel), got kind {self.kind!r}, batch_size {self.batch_size}")
+
+    def shape_ranges(self) -> list[str]:
+        """The bend's shape fields drawn per simulation (those of its ``*_range`` not None)."""
+        names = ("leg_out_range", "bend_radius_range", "bend_angle_range")
+        return [n for n in names if getattr(self, n) is not None]
 
     @property
     def reference_wall_time_s(self) -> float:
@@ -127,6 +150,13 @@ PRESETS: dict[str, Preset] = {
         leg_in=2.0, leg_out=3.0, bend_radius=2.5, spacing=0.25, wall_rings=12, wall_around=12,
         clot_cells=6, clot_length=2.0, clot_start_range=(0.3, 0.8), n_buffer=129,
         poisson_range=(0.45, 0.49), max_substeps=40_000,
+    ),
+    # BendVessel's tube with a new shape per simulation (outlet leg, bend radius and angle
+    # drawn around BendVessel's 10 / 3 / 90): for models that must meet vessels they did not see
+    "bendvessel-shapes": Preset(
+        name="bendvessel-shapes", kind="bend", n_sims=20, n_frames=40, study="bendvessel",
+        leg_out_range=(7.0, 13.0), bend_radius_range=(2.5, 4.0), bend_angle_range=(60.0, 120.0),
+        n_buffer=161, safety=0.6, batch_size=1,
     ),
     "clotentry": Preset(
         name="clotentry", kind="tortuous", n_sims=10, n_frames=200,
