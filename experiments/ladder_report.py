@@ -120,18 +120,21 @@ def uncertainty_lines(results: dict) -> str:
 
 
 def plot_error_per_step(results: dict, path: pathlib.Path, title: str) -> None:
-    """MSE per rollout step of every rung (mean over the held-out simulations) and CV."""
+    """MSE per rollout step of every rung (mean over the held-out simulations) and CV; each
+    rung its own colour and line style (matplotlib's default cycle repeats after 10)."""
     fig, ax = plt.subplots(figsize=(7, 4))
-    for name, res in results.items():
+    colours = plt.get_cmap("tab20").colors
+    for i, (name, res) in enumerate(results.items()):
         curve = np.mean([s["mse_per_step"] for s in res["simulations"].values()], axis=0)
-        ax.plot(np.arange(1, len(curve) + 1), curve, label=name)
+        ax.plot(np.arange(1, len(curve) + 1), curve, label=name, color=colours[i % 20],
+                linestyle=("-", "--", ":", "-.")[i // 20 % 4])
     cv = np.mean([s["mse_per_step_cv"] for s in next(iter(results.values()))["simulations"]
                   .values()], axis=0)
     ax.plot(np.arange(1, len(cv) + 1), cv, "k--", label="constant velocity")
     ax.set_yscale("log")
     ax.set_xlabel("rollout step")
     ax.set_ylabel("MSE of clot nodes (vessel radii$^2$)")
-    ax.set_title(f"Stability ladder: held-out {title} simulations")
+    ax.set_title(f"Stability ladder: held-out {title} simulations", fontsize=10, wrap=True)
     ax.legend(fontsize=8)
     fig.tight_layout()
     with atomic_path(path) as tmp:

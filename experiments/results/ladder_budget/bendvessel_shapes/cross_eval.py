@@ -1,0 +1,47 @@
+"""Roll trained runs out on chosen simulations of any dataset and write the ladder's table
+(``table.md``, ``ladder.json``, ``error_per_step.png``) into OUT; each row's result is kept in
+``OUT/<label>.json`` and reused when the command is run again. Run from the repository root::
+
+    python experiments/results/ladder_budget/bendvessel_shapes/cross_eval.py OUT DATA \\
+        NAME1,NAME2,... "TITLE" LABEL=RUN[+RUN...][:guards] ...
+
+Every run is evaluated at its last checkpoint; ``+`` joins runs into an ensemble (score a member
+alone with a row of its own); ``:guards`` turns the physics guards on. Each row's JSON keeps
+the environment it was measured in (``measured``); the tables' closing lines are those of the
+process that wrote them.
+"""
+
+import json
+import pathlib
+import sys
+
+sys.path.insert(0, "experiments")
+from ladder_eval import evaluate_runs  # noqa: E402
+from ladder_report import write_reports  # noqa: E402
+
+from thrombojax.eval.tables import environment  # noqa: E402
+from thrombojax.io.outputs import atomic_write_text  # noqa: E402
+
+
+def main() -> None:
+    out, data, names, title = pathlib.Path(sys.argv[1]), sys.argv[2], sys.argv[3].split(","), \
+        sys.argv[4]
+    out.mkdir(parents=True, exist_ok=True)
+    results = {}
+    for spec in sys.argv[5:]:
+        label, _, rest = spec.partition("=")
+        runs, _, flag = rest.partition(":")
+        path = out / f"{label}.json"
+        if path.is_file():
+            results[label] = json.loads(path.read_text())
+            continue
+        print("evaluating", label, flush=True)
+        results[label] = evaluate_runs([pathlib.Path(r) for r in runs.split("+")], data,
+                                       flag == "guards", None, names, "last")
+        results[label]["measured"] = environment()
+        atomic_write_text(path, json.dumps(results[label], indent=1))
+    print(write_reports(out, results, title=title, test_sims=names, nodes=None))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,35 @@
+"""Train seed SEED of a ladder rung for EPOCHS epochs on a dataset whose simulations are named
+``<PREFIX>_NNN`` (held out: ``_005``, ``_012``, ``_019``; validation ``_009``, the ladder's
+defaults), into the folder the ladder evaluates it from (``OUT/<rung>/run`` for seed 0,
+``OUT/<rung>/member_<seed>/run`` otherwise). Run from the repository root::
+
+    python experiments/results/ladder_budget/bendvessel_shapes/train_seed.py \\
+        axis_swell10 /work/exp/bv_shapes 0 data/bendvessel_shapes.h5 25 bendvessel-shapes
+"""
+
+import pathlib
+import sys
+
+sys.path.insert(0, "experiments")
+import ladder  # noqa: E402
+
+
+def main() -> None:
+    rung_name, out, seed = sys.argv[1], pathlib.Path(sys.argv[2]), int(sys.argv[3])
+    data, epochs, prefix = sys.argv[4], int(sys.argv[5]), sys.argv[6]
+    rung = next(r for r in ladder.RUNGS if r.name == rung_name)
+    if seed:  # the ladder's own member recipe and folder
+        folder = ladder._member_folder(rung, out, seed)
+        rung = ladder.member_rung(rung, seed)
+    else:
+        folder = out / rung.name
+    folder.mkdir(parents=True, exist_ok=True)
+    split = {"test_sims": [f"{prefix}_{i:03d}" for i in (5, 12, 19)],
+             "val_sims": [f"{prefix}_009"]}
+    print("training", folder, epochs, "epochs", flush=True)
+    ladder._train_rung(rung, data, folder, split, 0.0, epochs, epochs, None, ladder.COMMON)
+    print("done", flush=True)
+
+
+if __name__ == "__main__":
+    main()
