@@ -8,7 +8,8 @@ import numpy as np
 __all__ = ["COMMON", "STUDY_SIZE", "SMALL_MGN", "SIGNED", "HISTNOISE", "WALK", "AXIS",
            "AXIS_WALL", "AXIS_WALL1", "AXIS_SIGNED", "FOLLOW", "FOLLOW_NOHIST",
            "FOLLOW_HISTNOISE", "FOLLOW_STEADY", "AXIS_SWELL", "AXIS_SWELL10", "AXIS_SWELL03",
-           "AXIS_SWELL10_WALL3", "AXIS_SWELL10_HAAR", "AXIS_SWELL10_FRAME", "AXIS_SIGNED_SWELL10",
+           "AXIS_SWELL10_WALL3", "AXIS_SWELL10_HAAR", "AXIS_SWELL10_FRAME", "AXIS_SWELL10_SPEED",
+           "AXIS_SWELL10_FRAME_SPEED", "AXIS_SIGNED_SWELL10",
            "AXIS_SWELL10_CM", "FOLLOW_NOHIST_CM", "FOLLOW_NOHIST_CM_FRAME", "FOLLOW_HOLD",
            "FOLLOW_KSTEP", "FOLLOW_KSTEP6", "FOLLOW_SPEED", "NOISE", "ROTATION", "HISTORY",
            "DIRECTION", "DIRSPEED", "DIRSPEED3", "DIRSPEED_LAST", "FOLLOW_ROOM", "NOHIST_ROLLOUT",
@@ -68,6 +69,12 @@ AXIS_SWELL10_HAAR = {**AXIS_SWELL10, "uniform_rotation": True}
 # it in the rigid vessel's own frame (``--frame vessel``: invariant to the orientation up to
 # rounding, so a turned simulation enters as the dataset's own): rungs ``axis_swell10_frame*``
 AXIS_SWELL10_FRAME = {**AXIS_SWELL10, "frame": "vessel"}
+# both with speed noise 0.1 (the clot's input motion scaled, the target unchanged): trained on
+# vessels of many shapes, the frame's rollouts ran ahead on BendVessel-sized vessels and lagged
+# on a longer one, one bias along the vessel: rungs ``axis_swell10_speed*``,
+# ``axis_swell10_frame_speed*``
+AXIS_SWELL10_SPEED = {**AXIS_SWELL10, "speed_noise": 0.1}
+AXIS_SWELL10_FRAME_SPEED = {**AXIS_SWELL10_FRAME, "speed_noise": 0.1}
 # the 10 % swell noise with the wall term weighted 3x: rungs ``axis_swell10_wall3*``
 AXIS_SWELL10_WALL3 = {**AXIS_SWELL10, "wall_loss_weight": 3.0}
 # 3 %: on ClotEntry's 5 r clot it moves the ends by about what 5 % does on BendVessel's 3 r clot

@@ -16,7 +16,9 @@ from ladder_recipes import (  # noqa: F401  (re-exported: the ladder's users imp
     AXIS_SWELL10,
     AXIS_SWELL10_CM,
     AXIS_SWELL10_FRAME,
+    AXIS_SWELL10_FRAME_SPEED,
     AXIS_SWELL10_HAAR,
+    AXIS_SWELL10_SPEED,
     AXIS_SWELL10_WALL3,
     AXIS_WALL,
     AXIS_WALL1,
@@ -278,6 +280,13 @@ RUNGS: tuple[Rung, ...] = (
          reuse="axis_swell10_frame", members=3, checkpoint="last"),
     Rung("axis_swell10_frame_seeds5", AXIS_SWELL10_FRAME, reuse="axis_swell10_frame",
          members=5, checkpoint="last"),
+    # both frames with speed noise 0.1 (for vessels of many shapes): alone and guarded
+    Rung("axis_swell10_speed", AXIS_SWELL10_SPEED, checkpoint="last"),
+    Rung("axis_swell10_speed_guards", AXIS_SWELL10_SPEED, guards=True,
+         reuse="axis_swell10_speed", checkpoint="last"),
+    Rung("axis_swell10_frame_speed", AXIS_SWELL10_FRAME_SPEED, checkpoint="last"),
+    Rung("axis_swell10_frame_speed_guards", AXIS_SWELL10_FRAME_SPEED, guards=True,
+         reuse="axis_swell10_frame_speed", checkpoint="last"),
     # it with the wall term weighted 3x: seed 0 (the last checkpoint alone and guarded), seeds
     # 0-1 as an ensemble alone and guarded
     Rung("axis_swell10_wall3", AXIS_SWELL10_WALL3, checkpoint="last"),
