@@ -4,7 +4,8 @@ Each case runs until the clot has left the vessel (:func:`thrombojax.sim.solver.
 densely stored frames are linearly interpolated in time to exactly ``n_frames + 1`` frames
 from the start to the exit. Wall nodes (rings of points) are appended after the clot nodes,
 and every position is rotated by the case's rotation (BendVessel: ``index * 10`` degrees about
-x; the physics is rotation invariant, so all cases share one unrotated mesh and one compile).
+x; the physics is rotation invariant, so all cases share one unrotated mesh and one compile;
+a preset that draws a bend's shape per simulation compiles once per centreline length).
 Cases of a preset with ``batch_size > 1`` run together under ``jax.vmap``.
 """
 
