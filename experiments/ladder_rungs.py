@@ -69,6 +69,13 @@ class Rung:
     rotations: int = 0  # > 0: each model on that many copies (the first unturned), turned back
 
 
+def last_alone_and_guarded(name: str, recipe: dict) -> tuple[Rung, Rung]:
+    """Rung ``name`` (the recipe, its last checkpoint) and ``name_guards`` (the same model
+    rolled out with the guards): the ladder's usual pair."""
+    return (Rung(name, recipe, checkpoint="last"),
+            Rung(f"{name}_guards", recipe, guards=True, reuse=name, checkpoint="last"))
+
+
 RUNGS: tuple[Rung, ...] = (
     Rung("baseline", {}),
     Rung("noise", NOISE),
@@ -248,9 +255,7 @@ RUNGS: tuple[Rung, ...] = (
     # it with uniformly random orientations in training: seed 0 alone and guarded, seeds 0-1,
     # seed 0 as a rotation ensemble of 4 copies (guarded too), seeds 0-2 alone,
     # seeds 0-1 / 0-2 each on 4 copies
-    Rung("axis_swell10_haar", AXIS_SWELL10_HAAR, checkpoint="last"),
-    Rung("axis_swell10_haar_guards", AXIS_SWELL10_HAAR, guards=True, reuse="axis_swell10_haar",
-         checkpoint="last"),
+    *last_alone_and_guarded("axis_swell10_haar", AXIS_SWELL10_HAAR),
     Rung("axis_swell10_haar_seeds", AXIS_SWELL10_HAAR, reuse="axis_swell10_haar", members=2,
          checkpoint="last"),
     Rung("axis_swell10_haar_ens_guards", AXIS_SWELL10_HAAR, guards=True,
@@ -267,9 +272,7 @@ RUNGS: tuple[Rung, ...] = (
          members=3, checkpoint="last", rotations=4),
     # it in the vessel's frame: seed 0 alone and guarded, seeds 0-1 / 0-2 alone and guarded,
     # seeds 0-4 alone (each also scored alone)
-    Rung("axis_swell10_frame", AXIS_SWELL10_FRAME, checkpoint="last"),
-    Rung("axis_swell10_frame_guards", AXIS_SWELL10_FRAME, guards=True,
-         reuse="axis_swell10_frame", checkpoint="last"),
+    *last_alone_and_guarded("axis_swell10_frame", AXIS_SWELL10_FRAME),
     Rung("axis_swell10_frame_seeds", AXIS_SWELL10_FRAME, reuse="axis_swell10_frame", members=2,
          checkpoint="last"),
     Rung("axis_swell10_frame_ens_guards", AXIS_SWELL10_FRAME, guards=True,
@@ -281,25 +284,17 @@ RUNGS: tuple[Rung, ...] = (
     Rung("axis_swell10_frame_seeds5", AXIS_SWELL10_FRAME, reuse="axis_swell10_frame",
          members=5, checkpoint="last"),
     # both frames with speed noise 0.1 (for vessels of many shapes): alone and guarded
-    Rung("axis_swell10_speed", AXIS_SWELL10_SPEED, checkpoint="last"),
-    Rung("axis_swell10_speed_guards", AXIS_SWELL10_SPEED, guards=True,
-         reuse="axis_swell10_speed", checkpoint="last"),
-    Rung("axis_swell10_frame_speed", AXIS_SWELL10_FRAME_SPEED, checkpoint="last"),
-    Rung("axis_swell10_frame_speed_guards", AXIS_SWELL10_FRAME_SPEED, guards=True,
-         reuse="axis_swell10_frame_speed", checkpoint="last"),
+    *last_alone_and_guarded("axis_swell10_speed", AXIS_SWELL10_SPEED),
+    *last_alone_and_guarded("axis_swell10_frame_speed", AXIS_SWELL10_FRAME_SPEED),
     # it with the wall term weighted 3x: seed 0 (the last checkpoint alone and guarded), seeds
     # 0-1 as an ensemble alone and guarded
-    Rung("axis_swell10_wall3", AXIS_SWELL10_WALL3, checkpoint="last"),
-    Rung("axis_swell10_wall3_guards", AXIS_SWELL10_WALL3, guards=True,
-         reuse="axis_swell10_wall3", checkpoint="last"),
+    *last_alone_and_guarded("axis_swell10_wall3", AXIS_SWELL10_WALL3),
     Rung("axis_swell10_wall3_seeds", AXIS_SWELL10_WALL3, reuse="axis_swell10_wall3",
          members=2, checkpoint="last"),
     Rung("axis_swell10_wall3_ens_guards", AXIS_SWELL10_WALL3, guards=True,
          reuse="axis_swell10_wall3", members=2, checkpoint="last"),
     # the 3 % swell noise, its last checkpoint alone and guarded
-    Rung("axis_swell03_last", AXIS_SWELL03, checkpoint="last"),
-    Rung("axis_swell03_last_guards", AXIS_SWELL03, guards=True, reuse="axis_swell03_last",
-         checkpoint="last"),
+    *last_alone_and_guarded("axis_swell03_last", AXIS_SWELL03),
     # the 5 % swell noise's last checkpoint, alone and guarded
     Rung("axis_swell_last", AXIS_SWELL, reuse="axis_swell", checkpoint="last"),
     Rung("axis_swell_last_guards", AXIS_SWELL, guards=True, reuse="axis_swell",
@@ -316,23 +311,15 @@ RUNGS: tuple[Rung, ...] = (
          reuse="axis_signed_swell10", checkpoint="last"),
     # the 10 % swell noise with the clot-wide error weighted 10x: last checkpoint, alone and
     # guarded
-    Rung("axis_swell10_cm_last", AXIS_SWELL10_CM, checkpoint="last"),
-    Rung("axis_swell10_cm_last_guards", AXIS_SWELL10_CM, guards=True,
-         reuse="axis_swell10_cm_last", checkpoint="last"),
+    *last_alone_and_guarded("axis_swell10_cm_last", AXIS_SWELL10_CM),
     # the prior without the history frame, last checkpoint, alone and guarded (the control of
     # the two below)
-    Rung("follow_nohist_last", FOLLOW_NOHIST, checkpoint="last"),
-    Rung("follow_nohist_last_guards", FOLLOW_NOHIST, guards=True, reuse="follow_nohist_last",
-         checkpoint="last"),
+    *last_alone_and_guarded("follow_nohist_last", FOLLOW_NOHIST),
     # the prior without the history frame and the clot-wide error weighted: last checkpoint,
     # alone and guarded
-    Rung("follow_nohist_cm_last", FOLLOW_NOHIST_CM, checkpoint="last"),
-    Rung("follow_nohist_cm_last_guards", FOLLOW_NOHIST_CM, guards=True,
-         reuse="follow_nohist_cm_last", checkpoint="last"),
+    *last_alone_and_guarded("follow_nohist_cm_last", FOLLOW_NOHIST_CM),
     # it in the vessel's frame: last checkpoint, alone and guarded
-    Rung("follow_cm_frame_last", FOLLOW_NOHIST_CM_FRAME, checkpoint="last"),
-    Rung("follow_cm_frame_last_guards", FOLLOW_NOHIST_CM_FRAME, guards=True,
-         reuse="follow_cm_frame_last", checkpoint="last"),
+    *last_alone_and_guarded("follow_cm_frame_last", FOLLOW_NOHIST_CM_FRAME),
     # its seeds 0-2 as an ensemble, guarded and alone (each member also scored alone: the
     # seed spread)
     Rung("follow_nohist_cm_last_ens3_guards", FOLLOW_NOHIST_CM, guards=True,
@@ -341,9 +328,7 @@ RUNGS: tuple[Rung, ...] = (
          members=3, checkpoint="last"),
     # it with the lateral hold, last checkpoint, alone and guarded; seeds 0-2 as an ensemble,
     # guarded and alone
-    Rung("follow_hold_last", FOLLOW_HOLD, checkpoint="last"),
-    Rung("follow_hold_last_guards", FOLLOW_HOLD, guards=True, reuse="follow_hold_last",
-         checkpoint="last"),
+    *last_alone_and_guarded("follow_hold_last", FOLLOW_HOLD),
     Rung("follow_hold_last_ens3_guards", FOLLOW_HOLD, guards=True, reuse="follow_hold_last",
          members=3, checkpoint="last"),
     Rung("follow_hold_last_seeds3", FOLLOW_HOLD, reuse="follow_hold_last", members=3,

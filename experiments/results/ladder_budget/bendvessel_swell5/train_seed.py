@@ -1,9 +1,13 @@
 """Train seed SEED of a ladder rung for EPOCHS epochs into the folder the ladder evaluates it from
 (``OUT/<rung>/run`` for seed 0, ``OUT/<rung>/member_<seed>/run`` otherwise), so several seeds can
-train side by side before one ladder command evaluates them all. Run from the repository root::
+train side by side before one ladder command evaluates them all. Held out: the ladder's default
+simulations ``PREFIX_005``, ``_012``, ``_019``, validation ``PREFIX_009``; PREFIX is the
+optional sixth argument (default ``bendvessel``). Run from the repository root::
 
     python experiments/results/ladder_budget/bendvessel_swell5/train_seed.py \
         axis_swell10 /work/exp/bv_swell10 3 data/bendvessel.h5 25
+    python experiments/results/ladder_budget/bendvessel_swell5/train_seed.py \
+        axis_swell10 /work/exp/bv_shapes 0 data/bendvessel_shapes.h5 25 bendvessel-shapes
 """
 
 import pathlib
@@ -23,8 +27,9 @@ def main() -> None:
     else:
         folder = out / rung.name
     folder.mkdir(parents=True, exist_ok=True)
-    split = {"test_sims": ["bendvessel_005", "bendvessel_012", "bendvessel_019"],
-             "val_sims": ["bendvessel_009"]}  # the ladder's defaults
+    prefix = sys.argv[6] if len(sys.argv) > 6 else "bendvessel"
+    split = {"test_sims": [f"{prefix}_{i:03d}" for i in (5, 12, 19)],
+             "val_sims": [f"{prefix}_009"]}  # the ladder's defaults
     print("training", folder, epochs, "epochs", flush=True)
     ladder._train_rung(rung, data, folder, split, 0.0, epochs, epochs, None, ladder.COMMON)
     print("done", flush=True)
