@@ -9,7 +9,9 @@ __all__ = ["COMMON", "STUDY_SIZE", "SMALL_MGN", "SIGNED", "HISTNOISE", "WALK", "
            "AXIS_WALL", "AXIS_WALL1", "AXIS_SIGNED", "FOLLOW", "FOLLOW_NOHIST",
            "FOLLOW_HISTNOISE", "FOLLOW_STEADY", "AXIS_SWELL", "AXIS_SWELL10", "AXIS_SWELL03",
            "AXIS_SWELL10_WALL3", "AXIS_SWELL10_HAAR", "AXIS_SWELL10_FRAME", "AXIS_SWELL10_SPEED",
-           "AXIS_SWELL10_FRAME_SPEED", "AXIS_SIGNED_SWELL10",
+           "AXIS_SWELL10_FRAME_SPEED", "AXIS_SWELL10_TSCALE", "AXIS_SWELL10_FRAME_TSCALE",
+           "AXIS_SWELL10_FRAME_TSCALE2",
+           "AXIS_SIGNED_SWELL10",
            "AXIS_SWELL10_CM", "FOLLOW_NOHIST_CM", "FOLLOW_NOHIST_CM_FRAME", "FOLLOW_HOLD",
            "FOLLOW_KSTEP", "FOLLOW_KSTEP6", "FOLLOW_SPEED", "NOISE", "ROTATION", "HISTORY",
            "DIRECTION", "DIRSPEED", "DIRSPEED3", "DIRSPEED_LAST", "FOLLOW_ROOM", "NOHIST_ROLLOUT",
@@ -75,6 +77,14 @@ AXIS_SWELL10_FRAME = {**AXIS_SWELL10, "frame": "vessel"}
 # ``axis_swell10_frame_speed*``
 AXIS_SWELL10_SPEED = {**AXIS_SWELL10, "speed_noise": 0.1}
 AXIS_SWELL10_FRAME_SPEED = {**AXIS_SWELL10_FRAME, "speed_noise": 0.1}
+# both with time scaling 1.5 instead (each window's clot motion played up to 1.5x faster or
+# slower, the target with it): speed noise shows a clot off its speed and the true next frame,
+# so it teaches a speed to return to; time scaling shows every speed as a true one, so the
+# step must carry the speed its input has: rungs ``axis_swell10_tscale*``,
+# ``axis_swell10_frame_tscale*``
+AXIS_SWELL10_TSCALE = {**AXIS_SWELL10, "time_scale": 1.5}
+AXIS_SWELL10_FRAME_TSCALE = {**AXIS_SWELL10_FRAME, "time_scale": 1.5}
+AXIS_SWELL10_FRAME_TSCALE2 = {**AXIS_SWELL10_FRAME, "time_scale": 2.0}  # and up to 2x
 # the 10 % swell noise with the wall term weighted 3x: rungs ``axis_swell10_wall3*``
 AXIS_SWELL10_WALL3 = {**AXIS_SWELL10, "wall_loss_weight": 3.0}
 # 3 %: on ClotEntry's 5 r clot it moves the ends by about what 5 % does on BendVessel's 3 r clot

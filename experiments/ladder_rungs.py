@@ -17,8 +17,11 @@ from ladder_recipes import (  # noqa: F401  (re-exported: the ladder's users imp
     AXIS_SWELL10_CM,
     AXIS_SWELL10_FRAME,
     AXIS_SWELL10_FRAME_SPEED,
+    AXIS_SWELL10_FRAME_TSCALE,
+    AXIS_SWELL10_FRAME_TSCALE2,
     AXIS_SWELL10_HAAR,
     AXIS_SWELL10_SPEED,
+    AXIS_SWELL10_TSCALE,
     AXIS_SWELL10_WALL3,
     AXIS_WALL,
     AXIS_WALL1,
@@ -286,6 +289,10 @@ RUNGS: tuple[Rung, ...] = (
     # both frames with speed noise 0.1 (for vessels of many shapes): alone and guarded
     *last_alone_and_guarded("axis_swell10_speed", AXIS_SWELL10_SPEED),
     *last_alone_and_guarded("axis_swell10_frame_speed", AXIS_SWELL10_FRAME_SPEED),
+    # both frames with time scaling 1.5 instead (for vessels of many shapes): alone and guarded
+    *last_alone_and_guarded("axis_swell10_tscale", AXIS_SWELL10_TSCALE),
+    *last_alone_and_guarded("axis_swell10_frame_tscale", AXIS_SWELL10_FRAME_TSCALE),
+    *last_alone_and_guarded("axis_swell10_frame_tscale2", AXIS_SWELL10_FRAME_TSCALE2),
     # it with the wall term weighted 3x: seed 0 (the last checkpoint alone and guarded), seeds
     # 0-1 as an ensemble alone and guarded
     *last_alone_and_guarded("axis_swell10_wall3", AXIS_SWELL10_WALL3),
