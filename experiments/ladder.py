@@ -151,6 +151,11 @@ from ladder_rungs import (  # noqa: E402
     Rung,
 )
 
+# the held-out and validation simulations of BendVessel (``--test``, ``--val`` defaults):
+# rotations 50, 120 and 190 degrees (190 outside the training rotations), and 90
+DEFAULT_TEST = ("bendvessel_005", "bendvessel_012", "bendvessel_019")
+DEFAULT_VAL = ("bendvessel_009",)
+
 
 def _train_rung(rung: Rung, data: str, folder: pathlib.Path, split: dict, minutes: float,
                 max_epochs: int, epochs: int | None = None,
@@ -238,9 +243,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--epochs", type=int, default=None,
                         help="a fixed epoch count per rung instead of the timed budget (the "
                         "same work per rung whatever else loads the machine)")
-    parser.add_argument("--test", default="bendvessel_005,bendvessel_012,bendvessel_019",
+    parser.add_argument("--test", default=",".join(DEFAULT_TEST),
                         help="held-out simulations (comma-separated)")
-    parser.add_argument("--val", default="bendvessel_009", help="validation simulations")
+    parser.add_argument("--val", default=",".join(DEFAULT_VAL), help="validation simulations")
     parser.add_argument("--rungs", default=",".join(r.name for r in RUNGS))
     parser.add_argument("--nodes", type=int, default=None,
                         help="train on and roll out a fixed subset of this many nodes (the "

@@ -28,8 +28,8 @@ def main() -> None:
         folder = out / rung.name
     folder.mkdir(parents=True, exist_ok=True)
     prefix = sys.argv[6] if len(sys.argv) > 6 else "bendvessel"
-    split = {"test_sims": [f"{prefix}_{i:03d}" for i in (5, 12, 19)],
-             "val_sims": [f"{prefix}_009"]}  # the ladder's defaults
+    split = {k: [n.replace("bendvessel", prefix, 1) for n in names]  # the ladder's defaults
+             for k, names in (("test_sims", ladder.DEFAULT_TEST), ("val_sims", ladder.DEFAULT_VAL))}
     print("training", folder, epochs, "epochs", flush=True)
     ladder._train_rung(rung, data, folder, split, 0.0, epochs, epochs, None, ladder.COMMON)
     print("done", flush=True)
