@@ -10,7 +10,9 @@ __all__ = ["COMMON", "STUDY_SIZE", "SMALL_MGN", "SIGNED", "HISTNOISE", "WALK", "
            "FOLLOW_HISTNOISE", "FOLLOW_STEADY", "AXIS_SWELL", "AXIS_SWELL10", "AXIS_SWELL03",
            "AXIS_SWELL10_WALL3", "AXIS_SWELL10_HAAR", "AXIS_SWELL10_FRAME", "AXIS_SWELL10_SPEED",
            "AXIS_SWELL10_FRAME_SPEED", "AXIS_SWELL10_TSCALE", "AXIS_SWELL10_FRAME_TSCALE",
-           "AXIS_SWELL10_FRAME_TSCALE2",
+           "AXIS_SWELL10_FRAME_TSCALE2", "AXIS_SWELL10_FRAME_TSCALE_CM",
+           "AXIS_SWELL10_FRAME_TSCALE_ROOM", "AXIS_SWELL10_FRAME_TSCALE_OUTLET",
+           "AXIS_SWELL10_FRAME_TSCALE_OUTLET_HN", "AXIS_SWELL10_FRAME_TSCALE_OUTLET_NOHIST",
            "AXIS_SIGNED_SWELL10",
            "AXIS_SWELL10_CM", "FOLLOW_NOHIST_CM", "FOLLOW_NOHIST_CM_FRAME", "FOLLOW_HOLD",
            "FOLLOW_KSTEP", "FOLLOW_KSTEP6", "FOLLOW_SPEED", "NOISE", "ROTATION", "HISTORY",
@@ -85,6 +87,24 @@ AXIS_SWELL10_FRAME_SPEED = {**AXIS_SWELL10_FRAME, "speed_noise": 0.1}
 AXIS_SWELL10_TSCALE = {**AXIS_SWELL10, "time_scale": 1.5}
 AXIS_SWELL10_FRAME_TSCALE = {**AXIS_SWELL10_FRAME, "time_scale": 1.5}
 AXIS_SWELL10_FRAME_TSCALE2 = {**AXIS_SWELL10_FRAME, "time_scale": 2.0}  # and up to 2x
+# the vessel frame with time scaling, and the clot-wide error weighted 10x: its rollouts gained
+# or lost speed in the steady slide, where the true clot-wide acceleration is 0 (rungs
+# ``axis_swell10_frame_tscale_cm*``); and with the clot-wide mean wall distance as an input (wall
+# features cut off at 0.5 r: the room the clot has, which grows in the outlet's flare where the
+# true clot speeds up; rungs ``axis_swell10_frame_tscale_room*``)
+AXIS_SWELL10_FRAME_TSCALE_CM = {**AXIS_SWELL10_FRAME_TSCALE, "clot_mean_weight": 10.0}
+AXIS_SWELL10_FRAME_TSCALE_ROOM = {**AXIS_SWELL10_FRAME_TSCALE, "wall_features": 0.5,
+                                  "wall_clot_mean": True}
+# and with the outlet features (2 r): teacher-forced, these steps gave the exit's speed-up only
+# through the history's acceleration (none from the geometry), so rollouts lagged in the last
+# frames; the features show where the vessel's open end lies ahead of the clot's motion (rungs
+# ``axis_swell10_frame_tscale_outlet*``)
+AXIS_SWELL10_FRAME_TSCALE_OUTLET = {**AXIS_SWELL10_FRAME_TSCALE, "outlet_features": 2.0}
+# teacher-forced, that step still gave the exit only through the history: so the history's
+# clot-wide acceleration noised (0.02 r per frame^2, rungs ``..._outlet_hn*``), or no history
+# (the step reads s_{t-1} alone, rungs ``..._outlet_nohist*``)
+AXIS_SWELL10_FRAME_TSCALE_OUTLET_HN = {**AXIS_SWELL10_FRAME_TSCALE_OUTLET, "history_noise": 0.02}
+AXIS_SWELL10_FRAME_TSCALE_OUTLET_NOHIST = {**AXIS_SWELL10_FRAME_TSCALE_OUTLET, "history": 1}
 # the 10 % swell noise with the wall term weighted 3x: rungs ``axis_swell10_wall3*``
 AXIS_SWELL10_WALL3 = {**AXIS_SWELL10, "wall_loss_weight": 3.0}
 # 3 %: on ClotEntry's 5 r clot it moves the ends by about what 5 % does on BendVessel's 3 r clot

@@ -158,6 +158,10 @@ def _add_train(sub) -> None:
                    "from the wall's normals within about this many vessel radii), so the clot "
                    "moves sideways only as the vessel turns and as it deforms (default 0: off)"
                    )
+    p.add_argument("--outlet-features", type=NN_FLOAT, help="tell clot nodes where the clot "
+                   "is against the vessel's open ends, ahead of its motion (the vessel nodes "
+                   "within about this many radii lie behind a node nearing the outlet), per "
+                   "node and clot-wide, so the step sees the outlet coming (default 0: off)")
     p.add_argument("--wall-signed", action="store_true", default=None, help="with "
                    "--wall-features: the features are the signed distance to the wall "
                    "(positive outside) and its outward normal, which tell a node that crossed "
@@ -192,7 +196,7 @@ def _run_train(args) -> int:
              "wall_clot_mean",
              "history_noise", "speed_noise", "direction_noise", "swell_noise", "time_scale",
              "clot_mean_weight", "wall_loss_weight", "select_by",
-             "axis_features", "follow_axis", "lateral_hold")
+             "axis_features", "follow_axis", "lateral_hold", "outlet_features")
     overrides = {k: getattr(args, k) for k in names if getattr(args, k) is not None}
     from thrombojax.train.recipes import DEFAULT_RECIPE, recipe
 

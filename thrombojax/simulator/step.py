@@ -76,14 +76,10 @@ from thrombojax.errors import ConfigError
 from thrombojax.graph.frame import FRAMES, VesselFrame, vessel_frame
 from thrombojax.graph.grid import GridSpec
 from thrombojax.graph.neighbors import graph_overflow
-from thrombojax.graph.vessel_axis import (
-    axis_velocity_features,
-    clot_lateral_mean,
-    follow_axis_offset,
-)
-from thrombojax.graph.wall_nodes import clot_wall_mean, signed_wall_features, wall_node_features
+from thrombojax.graph.vessel_axis import clot_lateral_mean, follow_axis_offset
 from thrombojax.models.registry import Surrogate
 from thrombojax.simulator.context import StepContext, make_context, shared_axes
+from thrombojax.simulator.features import extra_features
 from thrombojax.simulator.kinematics import (
     integrate,
     make_input,
@@ -154,6 +150,10 @@ class LearnedStep:
             across the local vessel axis (this width, scaled) is taken out
             (:func:`thrombojax.graph.vessel_axis.clot_lateral_mean`) before the prior is added;
             ``StepOutput.output`` is then the acceleration the step applied, normalised. 0: off.
+        outlet_radius: > 0: clot nodes also get where the clot is against the vessel's open
+            ends, ahead of its motion (:func:`thrombojax.graph.vessel_axis.outlet_features`,
+            this width, scaled); 0: off. (The order of all extra features:
+            :mod:`thrombojax.simulator.features`.)
     """
 
     model: Surrogate
@@ -167,12 +167,14 @@ class LearnedStep:
     axis_radius: float = 0.0
     prior_radius: float = 0.0
     lateral_radius: float = 0.0
+    outlet_radius: float = 0.0
 
     def __post_init__(self) -> None:
         if self.frame not in FRAMES:
             raise ConfigError(f"learned step: frame must be one of {list(FRAMES)}, "
                               f"got {self.frame!r}")
-        for name in ("wall_cutoff", "axis_radius", "prior_radius", "lateral_radius"):
+        for name in ("wall_cutoff", "axis_radius", "prior_radius", "lateral_radius",
+                     "outlet_radius"):
             if not (getattr(self, name) >= 0 and getattr(self, name) < float("inf")):
                 raise ConfigError(f"learned step: {name} must be a finite number >= 0, "
                                   f"got {getattr(self, name)!r}")
@@ -270,23 +272,8 @@ class LearnedStep:
             axes = shared_axes(x_cur, node_type, mask, context, inputs=True)
         velocity_scale = 1.0 if stats is None else stats.velocity_std
         inputs = make_input(self.last_previous(x_prev), x_cur, node_type, mask, velocity_scale)
-        extra = []
-        if self.history > 1:
-            feats = past_accelerations(x_prev, x_cur, mask, 1.0 if stats is None else
-                                       jnp.sqrt(jnp.mean(stats.std ** 2)))
-            extra.append(jax.lax.stop_gradient(feats) if self.stop_history_gradient else feats)
-        if self.wall_cutoff > 0:
-            features = signed_wall_features if self.wall_signed else wall_node_features
-            extra.append(features(x_cur, node_type, mask, cutoff=self.wall_cutoff))
-            if self.wall_clot_mean:
-                extra.append(clot_wall_mean(extra[-1], node_type, mask))
-        if self.axis_radius > 0:
-            extra.append(axis_velocity_features(
-                self.last_previous(x_prev), x_cur, node_type, mask, radius=self.axis_radius,
-                velocity_scale=velocity_scale, axis=axes(self.axis_radius)))
-        if extra:
-            inputs = inputs.replace(extra=jnp.concatenate(extra, axis=-1))
-        return inputs
+        extra = extra_features(self, stats, x_prev, x_cur, node_type, mask, velocity_scale, axes)
+        return inputs if extra is None else inputs.replace(extra=extra)
 
     def prior(self, x_last, x_cur, node_type, mask, *, context: StepContext | None = None,
               axis: jax.Array | None = None) -> jax.Array | float:
@@ -387,14 +374,17 @@ def make_step(model: Surrogate, frame: str = "global", wall_cutoff: float = 0.0,
               grid: GridSpec | None = None, history: int = 1,
               stop_history_gradient: bool = False, wall_signed: bool = False,
               axis_radius: float = 0.0, prior_radius: float = 0.0,
-              lateral_radius: float = 0.0, wall_clot_mean: bool = False) -> LearnedStep:
+              lateral_radius: float = 0.0, wall_clot_mean: bool = False,
+              outlet_radius: float = 0.0) -> LearnedStep:
     """The learned simulator of a surrogate in ``frame``, with wall features when
     ``wall_cutoff > 0``, vessel-axis features when ``axis_radius > 0``, the vessel-following
-    prior when ``prior_radius > 0``, the lateral hold when ``lateral_radius > 0``, the cell
+    prior when ``prior_radius > 0``, the lateral hold when ``lateral_radius > 0``, outlet
+    features when ``outlet_radius > 0``, the cell
     ``grid`` where it pays and ``history`` previous frames (module docstring, LearnedStep)."""
     return LearnedStep(model=model, frame=frame, wall_cutoff=float(wall_cutoff), grid=grid,
                        history=history, stop_history_gradient=bool(stop_history_gradient),
                        wall_signed=bool(wall_signed), axis_radius=float(axis_radius),
                        prior_radius=float(prior_radius),
                        lateral_radius=float(lateral_radius),
-                       wall_clot_mean=bool(wall_clot_mean))
+                       wall_clot_mean=bool(wall_clot_mean),
+                       outlet_radius=float(outlet_radius))

@@ -35,6 +35,7 @@ _RULES: dict[str, tuple[str, float, bool, bool]] = {
     "axis_features": ("float", 0.0, True, False),
     "follow_axis": ("float", 0.0, True, False),
     "lateral_hold": ("float", 0.0, True, False),
+    "outlet_features": ("float", 0.0, True, False),
     "noise_gamma": ("float", 0.0, True, False),
     "noise_shared": ("float", 0.0, True, False),
     "wall_noise": ("float", 0.0, True, False),
@@ -128,7 +129,8 @@ def check_dense_inputs(cfg, budget: int, where: str = "") -> None:
     from thrombojax.graph.wall_nodes import DENSE_PLANE_NODES
 
     used = [f"--{n.replace('_', '-')}" for n in ("axis_features", "follow_axis", "lateral_hold",
-                                                    "wall_noise", "wall_loss_weight")
+                                                    "outlet_features", "wall_noise",
+                                                    "wall_loss_weight")
             if getattr(cfg, n, 0.0) > 0]
     if getattr(cfg, "wall_signed", False):
         used.append("--wall-signed")

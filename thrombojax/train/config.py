@@ -138,6 +138,10 @@ class TrainConfig:
             > 0, the clot-wide mean of the model's acceleration across the vessel's axis is
             taken out, so the clot moves sideways only as its prior turns it and as it deforms
             (:func:`thrombojax.graph.vessel_axis.clot_lateral_mean`); 0: off.
+        outlet_features: width, in vessel radii, of the vessel neighbourhood whose offset along
+            the clot's motion tells clot nodes where the clot is against the vessel's open ends
+            (per node and clot-wide; negative nearing an outlet), so that the step can see the
+            outlet coming (0: off; :func:`thrombojax.graph.vessel_axis.outlet_features`).
         history: frames before t the learned step reads (1: the velocity alone; H >= 2: also
             the H - 1 accelerations before t, :mod:`thrombojax.simulator.step`); windows grow
             by H - 1 frames.
@@ -193,6 +197,7 @@ class TrainConfig:
     axis_features: float = 0.0
     follow_axis: float = 0.0
     lateral_hold: float = 0.0
+    outlet_features: float = 0.0
     wall_signed: bool = False
     wall_clot_mean: bool = False
     history: int = 1

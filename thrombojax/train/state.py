@@ -98,7 +98,8 @@ class TrainedModel:
                          axis_radius=float(self.config.get("axis_radius", 0.0)),
                          prior_radius=float(self.config.get("prior_radius", 0.0)),
                          lateral_radius=float(self.config.get("lateral_radius", 0.0)),
-                         wall_clot_mean=self.run.train.wall_clot_mean)
+                         wall_clot_mean=self.run.train.wall_clot_mean,
+                         outlet_radius=float(self.config.get("outlet_radius", 0.0)))
 
 
 def _manager(directory: pathlib.Path, *, read_only: bool = False) -> ocp.CheckpointManager:

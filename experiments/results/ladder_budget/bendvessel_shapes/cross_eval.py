@@ -6,7 +6,10 @@
         NAME1,NAME2,... "TITLE" LABEL=RUN[+RUN...][:guards] ...
 
 Every run is evaluated at its last checkpoint; ``+`` joins runs into an ensemble (score a member
-alone with a row of its own); ``:guards`` turns the physics guards on. Each row's JSON keeps
+alone with a row of its own); ``:guards`` turns the physics guards on, and
+``:guards,NAME=VALUE,...`` sets their options (numbers, keyword arguments of
+``thrombojax.simulator.guard_set.build_guards``, e.g. ``:guards,tolerance_r=0.3``, the coherence
+guard's tolerance in vessel radii). Each row's JSON keeps
 the environment it was measured in (``measured``); the tables' closing lines are those of the
 process that wrote them.
 """
@@ -31,13 +34,16 @@ def main() -> None:
     for spec in sys.argv[5:]:
         label, _, rest = spec.partition("=")
         runs, _, flag = rest.partition(":")
+        flag, *options = flag.split(",") if flag else [""]
+        guard_options = {k: float(v) for k, v in (o.split("=", 1) for o in options)} or None
         path = out / f"{label}.json"
         if path.is_file():
             results[label] = json.loads(path.read_text())
             continue
         print("evaluating", label, flush=True)
         results[label] = evaluate_runs([pathlib.Path(r) for r in runs.split("+")], data,
-                                       flag == "guards", None, names, "last")
+                                       flag == "guards", None, names, "last",
+                                       guard_options=guard_options)
         results[label]["measured"] = environment()
         atomic_write_text(path, json.dumps(results[label], indent=1))
     print(write_reports(out, results, title=title, test_sims=names, nodes=None))

@@ -1,0 +1,55 @@
+"""The extra node features of a learned step's input, after the velocity and node type.
+
+:meth:`thrombojax.simulator.step.LearnedStep._inputs` (and the flat batch step through it)
+appends, in this order and each only when the step has it:
+
+1. the history: the ``H - 1`` accelerations before t (``history >= 2``;
+   :func:`thrombojax.simulator.kinematics.past_accelerations`), divided by the RMS of the
+   target statistics' ``std``;
+2. the wall features (``wall_cutoff > 0``): distance and direction to the nearest vessel node,
+   or the signed wall distance and outward normal (``wall_signed``), and their clot-wide mean
+   distance (``wall_clot_mean``) (:mod:`thrombojax.graph.wall_nodes`);
+3. the velocity split along and across the local vessel axis (``axis_radius > 0``;
+   :func:`thrombojax.graph.vessel_axis.axis_velocity_features`);
+4. where the clot is against the vessel's open ends, ahead of its motion, per node and
+   clot-wide (``outlet_radius > 0``; :func:`thrombojax.graph.vessel_axis.outlet_features`).
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+
+from thrombojax.graph.vessel_axis import axis_velocity_features, outlet_features
+from thrombojax.graph.wall_nodes import clot_wall_mean, signed_wall_features, wall_node_features
+from thrombojax.simulator.kinematics import past_accelerations
+
+__all__ = ["extra_features"]
+
+
+def extra_features(step, stats, x_prev, x_cur, node_type, mask, velocity_scale, axes):
+    """``[N, F]`` the extra features of ``step`` (a
+    :class:`~thrombojax.simulator.step.LearnedStep`) at frame t, or None when it has none.
+
+    ``x_prev`` is the step's ``x_prev`` (``[H, N, 3]`` with history), ``x_cur`` s_t, both in
+    the coordinates of the model's inputs; ``stats`` None (initialisation) gives unit scales;
+    ``axes`` is :func:`~thrombojax.simulator.context.shared_axes` of ``x_cur``.
+    """
+    last = step.last_previous(x_prev)
+    extra = []
+    if step.history > 1:
+        feats = past_accelerations(x_prev, x_cur, mask, 1.0 if stats is None else
+                                   jnp.sqrt(jnp.mean(stats.std ** 2)))
+        extra.append(jax.lax.stop_gradient(feats) if step.stop_history_gradient else feats)
+    if step.wall_cutoff > 0:
+        features = signed_wall_features if step.wall_signed else wall_node_features
+        extra.append(features(x_cur, node_type, mask, cutoff=step.wall_cutoff))
+        if step.wall_clot_mean:
+            extra.append(clot_wall_mean(extra[-1], node_type, mask))
+    if step.axis_radius > 0:
+        extra.append(axis_velocity_features(
+            last, x_cur, node_type, mask, radius=step.axis_radius,
+            velocity_scale=velocity_scale, axis=axes(step.axis_radius)))
+    if step.outlet_radius > 0:
+        extra.append(outlet_features(last, x_cur, node_type, mask, radius=step.outlet_radius))
+    return jnp.concatenate(extra, axis=-1) if extra else None
