@@ -19,8 +19,12 @@ Run from the repository root (prints a Markdown table; ``--json FILE`` also writ
 from __future__ import annotations
 
 import argparse
+import datetime
 import json
+import os
 import pathlib
+import platform
+import sys
 
 import numpy as np
 
@@ -70,7 +74,12 @@ def main() -> None:
         if args.json.exists():
             raise SystemExit(f"{args.json}: exists; not replaced")
         tmp = args.json.with_suffix(".tmp")
-        tmp.write_text(json.dumps({"sets": sets, "rows": out}, indent=1))
+        meta = {"command": " ".join(["python", *sys.argv]),
+                "date": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
+                "python": platform.python_version(), "numpy": np.__version__,
+                "load": os.getloadavg()[0], "note": "from the evaluation rows' per-step "
+                "records; each row's environment is in its ladder.json"}
+        tmp.write_text(json.dumps({**meta, "sets": sets, "rows": out}, indent=1))
         tmp.replace(args.json)
 
 
