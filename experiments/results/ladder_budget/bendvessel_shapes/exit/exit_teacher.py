@@ -23,20 +23,18 @@ Run from the repository root::
 
 from __future__ import annotations
 
-import datetime
 import json
-import os
 import pathlib
-import platform
 import sys
 
-import jax
 import jax.numpy as jnp
 import numpy as np
 
 from thrombojax.data.radius import vessel_radius
 from thrombojax.eval.single_step import batched_next, scaled_simulation
+from thrombojax.eval.tables import environment
 from thrombojax.io.hdf5 import open_dataset
+from thrombojax.io.outputs import atomic_write_text
 from thrombojax.study import skip_frames
 from thrombojax.train.state import load_trained
 from thrombojax.types import clot_mask
@@ -111,11 +109,7 @@ def main() -> None:
     if out_path.exists():
         sys.exit(f"{out_path}: exists; not replaced")
     runs = dict(a.split("=", 1) for a in sys.argv[4:])
-    result = {"command": " ".join(["python", *sys.argv]),
-              "date": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
-              "device": str(jax.devices()[0]), "jax": jax.__version__,
-              "python": platform.python_version(), "load": os.getloadavg()[0],
-              "data": data, "runs": {}}
+    result = {**environment(), "data": data, "runs": {}}
     print(f"{'model':24s} steady a: true / pred | exit speed gain: true / pred / no history"
           " | onset a: true / pred / no history")
     for label, run in runs.items():
@@ -127,9 +121,7 @@ def main() -> None:
         print(f"{label:24s} {s['steady_true']:+.4f} / {s['steady_pred']:+.4f} | "
               f"{s['exit_gain_true']:.3f} / {s['exit_gain_pred']:.3f} / {nh[0]} | "
               f"{s['onset_true']:.4f} / {s['onset_pred']:.4f} / {nh[1]}")
-    tmp = out_path.with_suffix(".tmp")
-    tmp.write_text(json.dumps(result, indent=1))
-    tmp.replace(out_path)
+    atomic_write_text(out_path, json.dumps(result, indent=1))
 
 
 if __name__ == "__main__":

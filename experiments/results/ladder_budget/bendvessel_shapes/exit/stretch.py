@@ -17,19 +17,17 @@ Run from the repository root::
 
 from __future__ import annotations
 
-import datetime
 import json
-import os
 import pathlib
-import platform
 import sys
 
-import jax
 import numpy as np
 
 from thrombojax.data.radius import vessel_radius
 from thrombojax.eval.single_step import scaled_simulation
+from thrombojax.eval.tables import environment
 from thrombojax.io.hdf5 import open_dataset
+from thrombojax.io.outputs import atomic_write_text
 from thrombojax.simulator.rollout import rollout
 from thrombojax.study import skip_frames
 from thrombojax.train.state import load_trained
@@ -71,11 +69,7 @@ def main() -> None:
     if out_path.exists():
         sys.exit(f"{out_path}: exists; not replaced")
     runs = dict(a.split("=", 1) for a in sys.argv[4:])
-    result = {"command": " ".join(["python", *sys.argv]),
-              "date": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
-              "device": str(jax.devices()[0]), "jax": jax.__version__,
-              "python": platform.python_version(), "load": os.getloadavg()[0],
-              "percentiles": PERCENTILES, "data": data, "runs": {}}
+    result = {**environment(), "percentiles": PERCENTILES, "data": data, "runs": {}}
     for label, run in runs.items():
         result["runs"][label] = {"run": run, "simulations": {}}
         for name in names:
@@ -86,9 +80,7 @@ def main() -> None:
                 fmt = " ".join(f"{v:+.2f}" for v in row["pred"])
                 true = " ".join(f"{v:+.2f}" for v in row["true"])
                 print(f"  step {row['step']:2d}  predicted {fmt}   true {true}")
-    tmp = out_path.with_suffix(".tmp")
-    tmp.write_text(json.dumps(result, indent=1))
-    tmp.replace(out_path)
+    atomic_write_text(out_path, json.dumps(result, indent=1))
 
 
 if __name__ == "__main__":
