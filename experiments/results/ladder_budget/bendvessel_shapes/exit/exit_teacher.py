@@ -24,11 +24,10 @@ Run from the repository root::
 from __future__ import annotations
 
 import json
-import pathlib
-import sys
 
 import jax.numpy as jnp
 import numpy as np
+import script_args
 
 from thrombojax.data.radius import vessel_radius
 from thrombojax.eval.single_step import batched_next, scaled_simulation
@@ -103,12 +102,7 @@ def summary(sims: dict) -> dict:
 
 
 def main() -> None:
-    if len(sys.argv) < 5:
-        sys.exit(__doc__)
-    out_path, data, names = pathlib.Path(sys.argv[1]), sys.argv[2], sys.argv[3].split(",")
-    if out_path.exists():
-        sys.exit(f"{out_path}: exists; not replaced")
-    runs = dict(a.split("=", 1) for a in sys.argv[4:])
+    out_path, data, names, runs = script_args.parse(__doc__)
     result = {**environment(), "data": data, "runs": {}}
     print(f"{'model':24s} steady a: true / pred | exit speed gain: true / pred / no history"
           " | onset a: true / pred / no history")

@@ -18,10 +18,9 @@ Run from the repository root::
 from __future__ import annotations
 
 import json
-import pathlib
-import sys
 
 import numpy as np
+import script_args
 
 from thrombojax.data.radius import vessel_radius
 from thrombojax.eval.single_step import scaled_simulation
@@ -63,12 +62,7 @@ def along_spread(run: str, data: str, name: str) -> dict:
 
 
 def main() -> None:
-    if len(sys.argv) < 5:
-        sys.exit(__doc__)
-    out_path, data, names = pathlib.Path(sys.argv[1]), sys.argv[2], sys.argv[3].split(",")
-    if out_path.exists():
-        sys.exit(f"{out_path}: exists; not replaced")
-    runs = dict(a.split("=", 1) for a in sys.argv[4:])
+    out_path, data, names, runs = script_args.parse(__doc__)
     result = {**environment(), "percentiles": PERCENTILES, "data": data, "runs": {}}
     for label, run in runs.items():
         result["runs"][label] = {"run": run, "simulations": {}}
