@@ -2,7 +2,7 @@
 or in it.
 
 The true clot slides at an almost constant speed and then, over its last 4-7 frames, speeds up
-to 2-2.5 times that as it passes the outlet's flare. Each evaluation row of ``../cross_eval.py``
+to 2-2.7 times that as it passes the outlet's flare. Each evaluation row of ``../cross_eval.py``
 (``OUT/<label>.json``) records per step the rollout's centroid error along the true clot's
 track (``along_per_step_r``, > 0 ahead) and the true clot's speed (``speed_true_per_step_r``). This
 splits the final error along the track at the first step whose true speed exceeds 1.15 times

@@ -2,7 +2,7 @@
 acceleration along the clot's motion, before and during the exit, against the truth.
 
 Every rollout of the shapes-trained models lags the true clot over its last 4-7 frames, where the
-true clot speeds up from its steady slide (0.3-0.45 r per frame) to 0.75-0.95 r per frame as it
+true clot speeds up from its steady slide (0.28-0.45 r per frame) to 0.67-1.17 r per frame as it
 passes the outlet's flare (``exit_split.py``, in this folder). This script asks whether the
 one step already misses that acceleration from the true inputs, or only the rollout: for every
 window ``t`` of the rollout phase it runs the step on the true ``s_{t-H} .. s_t`` and compares
