@@ -26,7 +26,12 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
-from thrombojax.graph.wall_nodes import local_wall_plane, pairwise_sq_distances, vessel_normals
+from thrombojax.graph.wall_nodes import (
+    clot_wall_mean,
+    local_wall_plane,
+    pairwise_sq_distances,
+    vessel_normals,
+)
 from thrombojax.types import NodeType, clot_mask
 
 __all__ = ["vessel_axis", "axis_velocity_features", "axis_speed_velocity", "follow_axis_offset",
@@ -198,6 +203,5 @@ def outlet_features(
     v = jnp.sum(jnp.where(clot[:, None], x_cur - x_prev, 0.0), axis=0) / count
     speed = jnp.sqrt(jnp.sum(v * v))
     u = jnp.where(speed > 0, v / jnp.where(speed > 0, speed, 1.0), 0.0)
-    e = jnp.where(clot & (total > 0), (m @ u) / radius, 0.0)
-    mean = jnp.sum(e) / count
-    return jnp.where(clot[:, None], jnp.stack([e, jnp.broadcast_to(mean, e.shape)], -1), 0.0)
+    e = jnp.where(clot & (total > 0), (m @ u) / radius, 0.0)[:, None]
+    return jnp.concatenate([e, clot_wall_mean(e, node_type, mask)], axis=-1)
