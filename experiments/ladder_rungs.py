@@ -24,6 +24,7 @@ from ladder_recipes import (  # noqa: F401  (re-exported: the ladder's users imp
     AXIS_SWELL10_FRAME_TSCALE_OUTLET_HN,
     AXIS_SWELL10_FRAME_TSCALE_OUTLET_NOHIST,
     AXIS_SWELL10_FRAME_TSCALE_ROOM,
+    AXIS_SWELL10_FRAME_TSCALE_STRETCH,
     AXIS_SWELL10_HAAR,
     AXIS_SWELL10_SPEED,
     AXIS_SWELL10_TSCALE,
@@ -298,16 +299,15 @@ RUNGS: tuple[Rung, ...] = (
     *last_alone_and_guarded("axis_swell10_tscale", AXIS_SWELL10_TSCALE),
     *last_alone_and_guarded("axis_swell10_frame_tscale", AXIS_SWELL10_FRAME_TSCALE),
     *last_alone_and_guarded("axis_swell10_frame_tscale2", AXIS_SWELL10_FRAME_TSCALE2),
-    # it with the clot-wide error weighted 10x, and with the clot-wide mean wall distance
-    *last_alone_and_guarded("axis_swell10_frame_tscale_cm", AXIS_SWELL10_FRAME_TSCALE_CM),
-    *last_alone_and_guarded("axis_swell10_frame_tscale_room", AXIS_SWELL10_FRAME_TSCALE_ROOM),
-    # it with the outlet features (2 r): where the open end lies ahead of the clot's motion
-    *last_alone_and_guarded("axis_swell10_frame_tscale_outlet",
-                            AXIS_SWELL10_FRAME_TSCALE_OUTLET),
-    *last_alone_and_guarded("axis_swell10_frame_tscale_outlet_hn",
-                            AXIS_SWELL10_FRAME_TSCALE_OUTLET_HN),
-    *last_alone_and_guarded("axis_swell10_frame_tscale_outlet_nohist",
-                            AXIS_SWELL10_FRAME_TSCALE_OUTLET_NOHIST),
+    # it with the clot-wide error weighted 10x, with the clot-wide mean wall distance, with the
+    # outlet features (2 r; and history noise, and no history) and with stretch noise
+    *(rung for suffix, recipe in (
+        ("cm", AXIS_SWELL10_FRAME_TSCALE_CM), ("room", AXIS_SWELL10_FRAME_TSCALE_ROOM),
+        ("outlet", AXIS_SWELL10_FRAME_TSCALE_OUTLET),
+        ("outlet_hn", AXIS_SWELL10_FRAME_TSCALE_OUTLET_HN),
+        ("outlet_nohist", AXIS_SWELL10_FRAME_TSCALE_OUTLET_NOHIST),
+        ("stretch", AXIS_SWELL10_FRAME_TSCALE_STRETCH))
+      for rung in last_alone_and_guarded(f"axis_swell10_frame_tscale_{suffix}", recipe)),
     # it with the wall term weighted 3x: seed 0 (the last checkpoint alone and guarded), seeds
     # 0-1 as an ensemble alone and guarded
     *last_alone_and_guarded("axis_swell10_wall3", AXIS_SWELL10_WALL3),

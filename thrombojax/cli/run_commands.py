@@ -91,6 +91,9 @@ def _add_train(sub) -> None:
                    "window (with a random rate over the input frames), the target by half as "
                    "much: the model learns to take back a swelling of the clot, which rollouts "
                    "otherwise keep and grow (default 0: off)")
+    p.add_argument("--stretch-noise", type=NN_FLOAT, help="stretch noise, a fraction: as "
+                   "--swell-noise along the clot's motion only (its front moved ahead of its "
+                   "rear), which rollouts' clots otherwise keep and grow (default 0: off)")
     p.add_argument("--time-scale", type=float, help="time-scaling augmentation, the largest "
                    "factor F >= 1: each window's clot motion played F^u times as fast, u ~ "
                    "U(-1, 1) (velocities k, accelerations k^2 times), so a dataset at another "
@@ -194,7 +197,8 @@ def _run_train(args) -> int:
              "curriculum_epochs", "frame", "wall_features", "history", "noise_walk",
              "stop_history_gradient", "noise_shared", "wall_noise", "wall_signed",
              "wall_clot_mean",
-             "history_noise", "speed_noise", "direction_noise", "swell_noise", "time_scale",
+             "history_noise", "speed_noise", "direction_noise", "swell_noise", "stretch_noise",
+             "time_scale",
              "clot_mean_weight", "wall_loss_weight", "select_by",
              "axis_features", "follow_axis", "lateral_hold", "outlet_features")
     overrides = {k: getattr(args, k) for k in names if getattr(args, k) is not None}

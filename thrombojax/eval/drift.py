@@ -31,7 +31,9 @@ leaves the vessel, while the rollout speeds up a little every step. Two measures
   clot keeps (its least-squares scale about its centroid against the prediction from the true
   inputs). Constant velocity keeps all of it (1); a rollout whose clot swells a little in one
   step keeps swelling with a step near 1 and leaves the vessel
-  (:func:`thrombojax.train.shape_noise.add_swell_noise` trains the pull-back).
+  (:func:`thrombojax.train.shape_noise.add_swell_noise` trains the pull-back). With
+  ``along_motion=True`` the same for a stretch of the clot along its motion into s_t only (its
+  front moved ahead, its rear back: :func:`thrombojax.train.shape_noise.add_stretch_noise`).
 
 All are teacher-forced or post-hoc measures on host arrays; nothing here is compiled for a
 rollout.
@@ -222,6 +224,7 @@ def swell_carry(
     *,
     delta: float,
     mask: np.ndarray | None = None,
+    along_motion: bool = False,
 ) -> np.ndarray:
     """Share of a swelling of the clot in the inputs that a step keeps, per frame.
 
@@ -237,6 +240,9 @@ def swell_carry(
         frames: the frames ``t`` (each ``>= 1`` and ``< T``) to measure at.
         delta: the relative swelling (> 0; small, e.g. 0.02).
         mask: ``[n_nodes]`` real nodes (default: all).
+        along_motion: stretch instead: only the offsets' components along the clot's mean
+            motion from frame ``t - 1`` to ``t`` are scaled, and the share is measured along it
+            (a frame where the clot is at rest gives NaN).
     Returns:
         ``[len(frames)]`` shares.
     Raises:
@@ -247,20 +253,31 @@ def swell_carry(
         raise ConfigError(f"swell carry: delta must be > 0, got {delta!r}")
     positions, node_type, mask, clot = _arrays(positions, node_type, mask)
 
-    def swell(x):
+    def swell(x, d):
         centre = x[..., clot, :].mean(axis=-2, keepdims=True)
+        rel = x[..., clot, :] - centre
         out = x.copy()
-        out[..., clot, :] = centre + (1.0 + delta) * (x[..., clot, :] - centre)
+        out[..., clot, :] = centre + rel + delta * (rel if d is None else (rel @ d)[..., None] * d)
         return out
+
+    def size(offsets, d):  # the offsets whose scale is measured
+        return offsets if d is None else offsets @ d
 
     out = []
     for t in np.asarray(frames, int):
         cur, given = positions[t], np.asarray(step.previous(positions, t), np.float32)
+        d = None
+        if along_motion:
+            motion = (positions[t, clot] - positions[t - 1, clot]).mean(axis=0)
+            if not np.linalg.norm(motion) > 0:
+                out.append(np.nan)
+                continue
+            d = motion / np.linalg.norm(motion)
         nxt = np.asarray(batched_next(
-            step, params, stats, jnp.asarray(np.stack([given, swell(given)])),
-            jnp.asarray(np.stack([cur, swell(cur)])), jnp.asarray(node_type), jnp.asarray(mask)),
-            np.float64)[:, clot]
-        base, pert = nxt - nxt.mean(axis=1, keepdims=True)
+            step, params, stats, jnp.asarray(np.stack([given, swell(given, d)])),
+            jnp.asarray(np.stack([cur, swell(cur, d)])), jnp.asarray(node_type),
+            jnp.asarray(mask)), np.float64)[:, clot]
+        base, pert = (size(o, d) for o in nxt - nxt.mean(axis=1, keepdims=True))
         out.append((float(np.sum(pert * base) / np.sum(base * base)) - 1.0) / delta)
     return np.asarray(out)
 

@@ -43,6 +43,7 @@ _RULES: dict[str, tuple[str, float, bool, bool]] = {
     "speed_noise": ("float", 0.0, True, False),
     "direction_noise": ("float", 0.0, True, False),
     "swell_noise": ("float", 0.0, True, False),
+    "stretch_noise": ("float", 0.0, True, False),
     "time_scale": ("float", 1.0, True, False),
     "clot_mean_weight": ("float", 0.0, True, False),
     "wall_loss_weight": ("float", 0.0, True, False),

@@ -84,6 +84,9 @@ class TrainConfig:
             (with a random rate over the input frames), the targets by ``1 + e / 2``, so the
             model learns to take back a swelling of the clot, which a rollout's clot otherwise
             keeps and grows (0: off; :func:`thrombojax.train.shape_noise.add_swell_noise`).
+        stretch_noise: stretch noise, a fraction: the same draw applied along the clot's
+            motion only (the front moved ahead of the rear), which rollouts' clots otherwise
+            keep and grow (0: off; :func:`thrombojax.train.shape_noise.add_stretch_noise`).
         time_scale: time-scaling augmentation, the largest factor ``F`` (>= 1): each
             window's clot motion played ``k = F^u`` times as fast, ``u ~ U(-1, 1)`` (velocities
             ``k``, accelerations ``k^2`` times), so a dataset at another frame rate or a clot
@@ -178,6 +181,7 @@ class TrainConfig:
     speed_noise: float = 0.0
     direction_noise: float = 0.0
     swell_noise: float = 0.0
+    stretch_noise: float = 0.0
     time_scale: float = 1.0
     clot_mean_weight: float = 0.0
     wall_loss_weight: float = 0.0

@@ -281,6 +281,7 @@ def train(
                                              speed_noise=cfg.speed_noise,
                                              direction_noise=cfg.direction_noise,
                                              swell_noise=cfg.swell_noise,
+                                             stretch_noise=cfg.stretch_noise,
                                              time_scale=cfg.time_scale, k=k,
                                              pushforward=cfg.pushforward_steps,
                                              clot_mean_weight=cfg.clot_mean_weight,

@@ -1,4 +1,5 @@
-"""Swell noise: the clot's shape scaled about its centroid in the inputs, the target pulled back.
+"""Swell and stretch noise: the clot's shape scaled about its centroid in the inputs, the target
+pulled back.
 
 Why: rolled out alone, the ladder's BendVessel models of the default recipe swell. Teacher-forced
 (each step from the true frame) the clot stays inside the vessel, but over a rollout its nodes
@@ -26,6 +27,16 @@ unchanged.
 
 :func:`thrombojax.eval.drift.swell_carry` measures how much of a swelling in its inputs a step
 keeps (constant velocity: all of it, 1).
+
+The stretch noise (:func:`add_stretch_noise`) is the same draw applied along one direction only:
+the clot's mean motion into s_t. Why: rolled out alone, the vessel-frame BendVessel models keep
+their clot's rear near the true rear while its front runs ahead, up to 6 r past the true front
+before the exit (the true clot keeps its 2.8 r length), and the centroid follows the front
+(``experiments/results/ladder_budget/bendvessel_shapes/exit/README.md``); the isotropic swell
+noise does not show that mode. The clot of input frame ``j`` is stretched along the motion
+``d`` by ``1 + e - (current - j) rho`` (the front moving faster than the rear, as in such a
+rollout), the targets by ``1 + (1 - gamma) e``; offsets across ``d`` and the centroid stay.
+``drift.swell_carry(..., along_motion=True)`` measures the share of a stretch a step keeps.
 """
 
 from __future__ import annotations
@@ -36,7 +47,7 @@ import jax.numpy as jnp
 from thrombojax.train.noise import noise_off
 from thrombojax.types import clot_mask
 
-__all__ = ["add_swell_noise", "scale_about_centroid"]
+__all__ = ["add_stretch_noise", "add_swell_noise", "scale_about_centroid", "stretch_along"]
 
 
 def scale_about_centroid(points: jax.Array, moving: jax.Array, factor: jax.Array) -> jax.Array:
@@ -46,6 +57,30 @@ def scale_about_centroid(points: jax.Array, moving: jax.Array, factor: jax.Array
     centre = jnp.sum(points * w, axis=-2, keepdims=True) / jnp.maximum(jnp.sum(w), 1.0)
     scaled = centre + factor[..., None, None] * (points - centre)
     return jnp.where(moving[:, None], scaled, points)
+
+
+def stretch_along(points: jax.Array, moving: jax.Array, factor: jax.Array,
+                  direction: jax.Array) -> jax.Array:
+    """The ``moving`` nodes of ``points [..., n_nodes, 3]`` stretched by ``factor [...]`` about
+    their centroid along the unit (or zero) vector ``direction [3]``: each offset's component
+    along it scaled, the rest kept; the other nodes as given. A zero direction changes nothing."""
+    w = moving.astype(points.dtype)[:, None]
+    centre = jnp.sum(points * w, axis=-2, keepdims=True) / jnp.maximum(jnp.sum(w), 1.0)
+    along = jnp.sum((points - centre) * direction, axis=-1, keepdims=True)
+    stretched = points + (factor[..., None, None] - 1.0) * along * direction
+    return jnp.where(moving[:, None], stretched, points)
+
+
+def _shape_factors(key, frames, std, current, gamma, what):
+    """Per window frame: ``1 + e - (current - j) rho`` up to s_t, ``1 + (1 - gamma) e`` after."""
+    if not 0.0 <= gamma <= 1.0:
+        raise ValueError(f"{what} gamma must be in [0, 1], got {gamma!r}")
+    if current < 1:
+        raise ValueError(f"{what} needs s_t at index >= 1 of the window, got {current!r}")
+    e, rho = std * jax.random.normal(key, (2,), frames.dtype) * jnp.array([1.0, 0.5],
+                                                                           frames.dtype)
+    j = jnp.arange(frames.shape[0], dtype=frames.dtype)
+    return jnp.where(j <= current, 1.0 + e - (current - j) * rho, 1.0 + (1.0 - gamma) * e)
 
 
 def add_swell_noise(
@@ -77,12 +112,34 @@ def add_swell_noise(
     """
     if noise_off(std, "swell noise"):
         return frames
-    if not 0.0 <= gamma <= 1.0:
-        raise ValueError(f"swell noise gamma must be in [0, 1], got {gamma!r}")
-    if current < 1:
-        raise ValueError(f"swell noise needs s_t at index >= 1 of the window, got {current!r}")
-    e, rho = std * jax.random.normal(key, (2,), frames.dtype) * jnp.array([1.0, 0.5],
-                                                                           frames.dtype)
-    j = jnp.arange(frames.shape[0], dtype=frames.dtype)
-    factor = jnp.where(j <= current, 1.0 + e - (current - j) * rho, 1.0 + (1.0 - gamma) * e)
+    factor = _shape_factors(key, frames, std, current, gamma, "swell noise")
     return scale_about_centroid(frames, clot_mask(node_type, mask), factor)
+
+
+def add_stretch_noise(
+    key: jax.Array,
+    frames: jax.Array,
+    node_type: jax.Array,
+    mask: jax.Array,
+    *,
+    std: float,
+    current: int,
+    gamma: float = 0.5,
+) -> jax.Array:
+    """Stretch (or squeeze) the clot of one window along its motion (module docstring).
+
+    The direction is the clot's mean displacement from ``frames[current - 1]`` to
+    ``frames[current]``, normalised (zero for a clot at rest: nothing changes), the same for
+    every frame of the window. Arguments, returns and errors as :func:`add_swell_noise`, the
+    factor applied along that direction only.
+    """
+    if noise_off(std, "stretch noise"):
+        return frames
+    factor = _shape_factors(key, frames, std, current, gamma, "stretch noise")
+    moving = clot_mask(node_type, mask)
+    w = moving.astype(frames.dtype)[:, None]
+    motion = jnp.sum((frames[current] - frames[current - 1]) * w, axis=0) / jnp.maximum(
+        jnp.sum(w), 1.0)
+    norm = jnp.sqrt(jnp.sum(motion * motion))
+    direction = jnp.where(norm > 0, motion / jnp.where(norm > 0, norm, 1.0), 0.0)
+    return stretch_along(frames, moving, factor, direction)

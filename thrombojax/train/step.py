@@ -54,7 +54,7 @@ from thrombojax.train.noise import (
     add_wall_noise,
     time_scale_window,
 )
-from thrombojax.train.shape_noise import add_swell_noise
+from thrombojax.train.shape_noise import add_stretch_noise, add_swell_noise
 from thrombojax.train.state import TrainState
 from thrombojax.types import TargetStats
 from thrombojax.xla_options import jit as xla_jit
@@ -117,6 +117,7 @@ def batch_loss(
     speed_noise: float = 0.0,
     direction_noise: float = 0.0,
     swell_noise: float = 0.0,
+    stretch_noise: float = 0.0,
     time_scale: float = 1.0,
     k: int = 1,
     pushforward: int = 0,
@@ -148,6 +149,8 @@ def batch_loss(
         swell_noise: standard deviation of the factor the clot's shape is scaled by about its
             centroid in the inputs, the targets taking half of it back
             (:func:`thrombojax.train.shape_noise.add_swell_noise`; 0: off).
+        stretch_noise: the same along the clot's motion only
+            (:func:`thrombojax.train.shape_noise.add_stretch_noise`; 0: off).
         time_scale: largest factor the window's clot motion is played faster or slower by
             (:func:`thrombojax.train.noise.time_scale_window`; 1: off).
         k: steps of the unrolled loss (1: the single-step loss).
@@ -176,7 +179,7 @@ def batch_loss(
                                 noise_shared=noise_shared, wall_noise=wall_noise,
                                 history_noise=history_noise, speed_noise=speed_noise,
                                 direction_noise=direction_noise, swell_noise=swell_noise,
-                                time_scale=time_scale)
+                                stretch_noise=stretch_noise, time_scale=time_scale)
 
     wall_term = bool(wall_loss_weight)  # static: no wall search compiled when off
 
@@ -213,7 +216,7 @@ def batch_loss(
 
 def _corrupt(key, frames, node_type, mask, *, current, noise_std, noise_gamma, noise_walk,
              noise_shared, wall_noise, history_noise, speed_noise, direction_noise,
-             swell_noise, time_scale):
+             swell_noise, stretch_noise, time_scale):
     """One training window with its input noise (:mod:`thrombojax.train.noise`): the time
     scaling first from ``fold_in(key, 4)``, the speed and direction noise (on the clean motion)
     from ``fold_in(key, 3)`` and ``fold_in(key, 5)``, the swell noise from ``fold_in(key, 6)``,
@@ -232,6 +235,9 @@ def _corrupt(key, frames, node_type, mask, *, current, noise_std, noise_gamma, n
     if swell_noise > 0:
         frames = add_swell_noise(jax.random.fold_in(key, 6), frames, node_type, mask,
                                  std=swell_noise, current=current)
+    if stretch_noise > 0:
+        frames = add_stretch_noise(jax.random.fold_in(key, 7), frames, node_type, mask,
+                                   std=stretch_noise, current=current)
     if noise_std > 0:
         frames = add_training_noise(key, frames, node_type, mask, std=noise_std,
                                     gamma=noise_gamma, current=current, walk=noise_walk,
@@ -278,6 +284,7 @@ def make_train_step(
     speed_noise: float = 0.0,
     direction_noise: float = 0.0,
     swell_noise: float = 0.0,
+    stretch_noise: float = 0.0,
     time_scale: float = 1.0,
     k: int = 1,
     pushforward: int = 0,
@@ -293,7 +300,8 @@ def make_train_step(
         tx: the optimiser.
         stats: target statistics (closed over, constants of the compiled step).
         noise_std, noise_gamma, noise_walk, noise_shared, wall_noise, history_noise,
-            speed_noise, direction_noise, swell_noise, time_scale: training noise and time
+            speed_noise, direction_noise, swell_noise, stretch_noise, time_scale: training
+            noise and time
             scaling
             (:func:`batch_loss`).
         k: steps of the unrolled loss (1: single step).
@@ -316,7 +324,7 @@ def make_train_step(
                 noise_shared=noise_shared, wall_noise=wall_noise,
                 history_noise=history_noise, speed_noise=speed_noise,
                 direction_noise=direction_noise, swell_noise=swell_noise,
-                time_scale=time_scale, k=k,
+                stretch_noise=stretch_noise, time_scale=time_scale, k=k,
                 pushforward=pushforward,
                 flat_batch=flat_batch, clot_mean_weight=clot_mean_weight,
                 wall_loss_weight=wall_loss_weight,
