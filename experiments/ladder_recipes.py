@@ -13,7 +13,8 @@ __all__ = ["COMMON", "STUDY_SIZE", "SMALL_MGN", "SIGNED", "HISTNOISE", "WALK", "
            "AXIS_SWELL10_FRAME_TSCALE2", "AXIS_SWELL10_FRAME_TSCALE_CM",
            "AXIS_SWELL10_FRAME_TSCALE_ROOM", "AXIS_SWELL10_FRAME_TSCALE_OUTLET",
            "AXIS_SWELL10_FRAME_TSCALE_OUTLET_HN", "AXIS_SWELL10_FRAME_TSCALE_OUTLET_NOHIST",
-           "AXIS_SWELL10_FRAME_TSCALE_STRETCH",
+           "AXIS_SWELL10_FRAME_TSCALE_STRETCH", "AXIS_SWELL10_FRAME_TSCALE_STRETCH30",
+           "AXIS_SWELL10_FRAME_TSCALE_STRETCH_NOHIST", "AXIS_SWELL10_FRAME_TSCALE_STRETCH_SHAPE",
            "AXIS_SIGNED_SWELL10",
            "AXIS_SWELL10_CM", "FOLLOW_NOHIST_CM", "FOLLOW_NOHIST_CM_FRAME", "FOLLOW_HOLD",
            "FOLLOW_KSTEP", "FOLLOW_KSTEP6", "FOLLOW_SPEED", "NOISE", "ROTATION", "HISTORY",
@@ -110,6 +111,18 @@ AXIS_SWELL10_FRAME_TSCALE_OUTLET_NOHIST = {**AXIS_SWELL10_FRAME_TSCALE_OUTLET, "
 # taking half back): rolled out, these models' clot fronts ran up to 6 r ahead of the true
 # front while the rears stayed, and the centroid followed (rungs ``..._stretch*``)
 AXIS_SWELL10_FRAME_TSCALE_STRETCH = {**AXIS_SWELL10_FRAME_TSCALE, "stretch_noise": 0.1}
+# and with stretch noise 0.3: with 0.1 the step took back a fifth of a stretch rate and none
+# of a stretch (rungs ``..._stretch30*``)
+AXIS_SWELL10_FRAME_TSCALE_STRETCH30 = {**AXIS_SWELL10_FRAME_TSCALE, "stretch_noise": 0.3}
+# and the stretch noise on the outlet features without the history (the exit read from the
+# vessel, the clot's length kept): rungs ``..._stretch_nohist*``
+AXIS_SWELL10_FRAME_TSCALE_STRETCH_NOHIST = {**AXIS_SWELL10_FRAME_TSCALE_OUTLET_NOHIST,
+                                            "stretch_noise": 0.1}
+# the stretch noise 0.1 with the clot's shape as an input (each node's place along the motion,
+# the clot's length and width, over 1 r): with the noise alone the step kept a static stretch,
+# which a message-passing step cannot see from its neighbours (rungs ``..._stretch_shape*``)
+AXIS_SWELL10_FRAME_TSCALE_STRETCH_SHAPE = {**AXIS_SWELL10_FRAME_TSCALE_STRETCH,
+                                           "shape_features": 1.0}
 # the 10 % swell noise with the wall term weighted 3x: rungs ``axis_swell10_wall3*``
 AXIS_SWELL10_WALL3 = {**AXIS_SWELL10, "wall_loss_weight": 3.0}
 # 3 %: on ClotEntry's 5 r clot it moves the ends by about what 5 % does on BendVessel's 3 r clot

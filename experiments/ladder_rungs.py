@@ -7,7 +7,7 @@ import dataclasses
 
 import ladder_recipes
 import numpy as np
-from ladder_recipes import (  # noqa: F401  (re-exported: the ladder's users import them here)
+from ladder_recipes import (  # noqa: F401  (COMMON, SMALL_MGN, STUDY_SIZE: for ladder.py)
     AXIS,
     AXIS_SIGNED,
     AXIS_SIGNED_SWELL10,
@@ -19,12 +19,6 @@ from ladder_recipes import (  # noqa: F401  (re-exported: the ladder's users imp
     AXIS_SWELL10_FRAME_SPEED,
     AXIS_SWELL10_FRAME_TSCALE,
     AXIS_SWELL10_FRAME_TSCALE2,
-    AXIS_SWELL10_FRAME_TSCALE_CM,
-    AXIS_SWELL10_FRAME_TSCALE_OUTLET,
-    AXIS_SWELL10_FRAME_TSCALE_OUTLET_HN,
-    AXIS_SWELL10_FRAME_TSCALE_OUTLET_NOHIST,
-    AXIS_SWELL10_FRAME_TSCALE_ROOM,
-    AXIS_SWELL10_FRAME_TSCALE_STRETCH,
     AXIS_SWELL10_HAAR,
     AXIS_SWELL10_SPEED,
     AXIS_SWELL10_TSCALE,
@@ -61,7 +55,7 @@ from ladder_recipes import (  # noqa: F401  (re-exported: the ladder's users imp
     WALK,
 )
 
-__all__ = ["Rung", "RUNGS", *ladder_recipes.__all__]
+__all__ = ["Rung", "RUNGS", "last_alone_and_guarded"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -105,8 +99,7 @@ RUNGS: tuple[Rung, ...] = (
     Rung("history3", {**HISTORY, "history": 3}, guards=True),
     Rung("history_ensemble", HISTORY, guards=True, reuse="history_1step", members=3),
     Rung("history_walk", WALK, guards=True),
-    Rung("walk_ensemble", WALK, guards=True, reuse="history_walk",
-         members=3),
+    Rung("walk_ensemble", WALK, guards=True, reuse="history_walk", members=3),
     Rung("history_pf", {**WALK, "pushforward_steps": 1}, guards=True),
     Rung("history_sg", {**ROTATION, "history": 2, "noise_walk": True,
                         "stop_history_gradient": True}, guards=True),
@@ -292,22 +285,19 @@ RUNGS: tuple[Rung, ...] = (
          reuse="axis_swell10_frame", members=3, checkpoint="last"),
     Rung("axis_swell10_frame_seeds5", AXIS_SWELL10_FRAME, reuse="axis_swell10_frame",
          members=5, checkpoint="last"),
-    # both frames with speed noise 0.1 (for vessels of many shapes): alone and guarded
+    # both frames with speed noise 0.1, and with time scaling 1.5 instead (for vessels of many
+    # shapes): alone and guarded
     *last_alone_and_guarded("axis_swell10_speed", AXIS_SWELL10_SPEED),
     *last_alone_and_guarded("axis_swell10_frame_speed", AXIS_SWELL10_FRAME_SPEED),
-    # both frames with time scaling 1.5 instead (for vessels of many shapes): alone and guarded
     *last_alone_and_guarded("axis_swell10_tscale", AXIS_SWELL10_TSCALE),
     *last_alone_and_guarded("axis_swell10_frame_tscale", AXIS_SWELL10_FRAME_TSCALE),
     *last_alone_and_guarded("axis_swell10_frame_tscale2", AXIS_SWELL10_FRAME_TSCALE2),
-    # it with the clot-wide error weighted 10x, with the clot-wide mean wall distance, with the
-    # outlet features (2 r; and history noise, and no history) and with stretch noise
-    *(rung for suffix, recipe in (
-        ("cm", AXIS_SWELL10_FRAME_TSCALE_CM), ("room", AXIS_SWELL10_FRAME_TSCALE_ROOM),
-        ("outlet", AXIS_SWELL10_FRAME_TSCALE_OUTLET),
-        ("outlet_hn", AXIS_SWELL10_FRAME_TSCALE_OUTLET_HN),
-        ("outlet_nohist", AXIS_SWELL10_FRAME_TSCALE_OUTLET_NOHIST),
-        ("stretch", AXIS_SWELL10_FRAME_TSCALE_STRETCH))
-      for rung in last_alone_and_guarded(f"axis_swell10_frame_tscale_{suffix}", recipe)),
+    # it with each addition ``ladder_recipes.AXIS_SWELL10_FRAME_TSCALE_<SUFFIX>``
+    *(rung for suffix in ("cm", "room", "outlet", "outlet_hn", "outlet_nohist", "stretch",
+                          "stretch30", "stretch_nohist", "stretch_shape")
+      for rung in last_alone_and_guarded(
+          f"axis_swell10_frame_tscale_{suffix}",
+          getattr(ladder_recipes, f"AXIS_SWELL10_FRAME_TSCALE_{suffix.upper()}"))),
     # it with the wall term weighted 3x: seed 0 (the last checkpoint alone and guarded), seeds
     # 0-1 as an ensemble alone and guarded
     *last_alone_and_guarded("axis_swell10_wall3", AXIS_SWELL10_WALL3),
@@ -331,8 +321,7 @@ RUNGS: tuple[Rung, ...] = (
          checkpoint="last"),
     Rung("axis_signed_swell10_last_guards", AXIS_SIGNED_SWELL10, guards=True,
          reuse="axis_signed_swell10", checkpoint="last"),
-    # the 10 % swell noise with the clot-wide error weighted 10x: last checkpoint, alone and
-    # guarded
+    # the 10 % swell noise with the clot-wide error weighted 10x: last checkpoint, both ways
     *last_alone_and_guarded("axis_swell10_cm_last", AXIS_SWELL10_CM),
     # the prior without the history frame, last checkpoint, alone and guarded (the control of
     # the two below)

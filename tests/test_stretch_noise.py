@@ -5,7 +5,8 @@ while its rear keeps pace with the true rear. A step trained on true clots keeps
 given (as constant velocity does); the stretch noise
 (:func:`thrombojax.train.shape_noise.add_stretch_noise`) shows it stretched and squeezed clots
 with the pulled-back next frame as the target. :func:`thrombojax.eval.drift.swell_carry` with
-``along_motion=True`` measures how much of a stretch a step keeps.
+``along_motion=True`` measures how much of a stretch a step keeps, and with ``rate=True`` how
+much of a stretching rate in its input motion.
 """
 
 from __future__ import annotations
@@ -115,15 +116,17 @@ def test_stretch_noise_teaches_a_model_to_take_a_stretch_back():
     assert _stretch_carry_after_training(0.3) < 0.8
 
 
-def test_stretch_carry_of_constant_velocity_is_one_and_nan_at_rest():
+def test_stretch_and_rate_carry_of_constant_velocity_are_one_and_nan_at_rest():
     from thrombojax.models.registry import create_model, identity_stats
     from thrombojax.simulator.step import make_step
 
     cv = make_step(create_model("constant_velocity"))
-    frames, nt, mask = (np.asarray(a) for a in _window(0.05, frames=5))
-    np.testing.assert_allclose(swell_carry(cv, {}, identity_stats(), frames, nt, [1, 2, 3],
-                                           delta=0.05, mask=mask, along_motion=True), 1.0,
-                               atol=1e-4)
+    # a clot moving as a rigid body (for a deforming one the rate's share is about 1, not 1)
+    frames, nt, mask = (np.asarray(a) for a in ring_clot_window(0.05, frames=5))
+    for along, rate in ((True, False), (True, True), (False, True)):
+        np.testing.assert_allclose(swell_carry(cv, {}, identity_stats(), frames, nt, [1, 2, 3],
+                                               delta=0.05, mask=mask, along_motion=along,
+                                               rate=rate), 1.0, atol=1e-4)
     rest, nt, mask = (np.asarray(a) for a in ring_clot_window(0.0, frames=3))
     assert np.isnan(swell_carry(cv, {}, identity_stats(), rest, nt, [1], delta=0.05, mask=mask,
                                 along_motion=True)).all()

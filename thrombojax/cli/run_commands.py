@@ -165,6 +165,9 @@ def _add_train(sub) -> None:
                    "is against the vessel's open ends, ahead of its motion (the vessel nodes "
                    "within about this many radii lie behind a node nearing the outlet), per "
                    "node and clot-wide, so the step sees the outlet coming (default 0: off)")
+    p.add_argument("--shape-features", type=NN_FLOAT, help="tell clot nodes their place "
+                   "along the clot's motion and the clot's length and width, over this many "
+                   "radii, so the step sees a stretched clot (default 0: off)")
     p.add_argument("--wall-signed", action="store_true", default=None, help="with "
                    "--wall-features: the features are the signed distance to the wall "
                    "(positive outside) and its outward normal, which tell a node that crossed "
@@ -200,7 +203,8 @@ def _run_train(args) -> int:
              "history_noise", "speed_noise", "direction_noise", "swell_noise", "stretch_noise",
              "time_scale",
              "clot_mean_weight", "wall_loss_weight", "select_by",
-             "axis_features", "follow_axis", "lateral_hold", "outlet_features")
+             "axis_features", "follow_axis", "lateral_hold", "outlet_features",
+             "shape_features")
     overrides = {k: getattr(args, k) for k in names if getattr(args, k) is not None}
     from thrombojax.train.recipes import DEFAULT_RECIPE, recipe
 

@@ -33,7 +33,8 @@ leaves the vessel, while the rollout speeds up a little every step. Two measures
   step keeps swelling with a step near 1 and leaves the vessel
   (:func:`thrombojax.train.shape_noise.add_swell_noise` trains the pull-back). With
   ``along_motion=True`` the same for a stretch of the clot along its motion into s_t only (its
-  front moved ahead, its rear back: :func:`thrombojax.train.shape_noise.add_stretch_noise`).
+  front moved ahead, its rear back: :func:`thrombojax.train.shape_noise.add_stretch_noise`),
+  and with ``rate=True`` of a swelling or stretching *rate* in the input motion.
 
 All are teacher-forced or post-hoc measures on host arrays; nothing here is compiled for a
 rollout.
@@ -225,6 +226,7 @@ def swell_carry(
     delta: float,
     mask: np.ndarray | None = None,
     along_motion: bool = False,
+    rate: bool = False,
 ) -> np.ndarray:
     """Share of a swelling of the clot in the inputs that a step keeps, per frame.
 
@@ -243,6 +245,11 @@ def swell_carry(
         along_motion: stretch instead: only the offsets' components along the clot's mean
             motion from frame ``t - 1`` to ``t`` are scaled, and the share is measured along it
             (a frame where the clot is at rest gives NaN).
+        rate: a swelling rate instead: s_t as it is, the frame ``k`` steps before it scaled
+            by ``1 - k delta``, so the input motion carries a swelling of ``delta`` per frame
+            and the clot's shape none; the share is of that rate (constant velocity 1 on a
+            clot moving as a rigid body, about 1 on a deforming one; 0: the step stops the
+            swelling in one step). What the rate ``rho`` of the swell and stretch noise trains.
     Returns:
         ``[len(frames)]`` shares.
     Raises:
@@ -253,11 +260,12 @@ def swell_carry(
         raise ConfigError(f"swell carry: delta must be > 0, got {delta!r}")
     positions, node_type, mask, clot = _arrays(positions, node_type, mask)
 
-    def swell(x, d):
+    def swell(x, d, by):
         centre = x[..., clot, :].mean(axis=-2, keepdims=True)
         rel = x[..., clot, :] - centre
+        by = np.reshape(by, np.shape(by) + (1, 1))
         out = x.copy()
-        out[..., clot, :] = centre + rel + delta * (rel if d is None else (rel @ d)[..., None] * d)
+        out[..., clot, :] = centre + rel + by * (rel if d is None else (rel @ d)[..., None] * d)
         return out
 
     def size(offsets, d):  # the offsets whose scale is measured
@@ -273,9 +281,11 @@ def swell_carry(
                 out.append(np.nan)
                 continue
             d = motion / np.linalg.norm(motion)
+        lags = np.arange(step.history, 0, -1) if step.history > 1 else np.asarray(1)
+        by_given, by_cur = (-delta * lags, 0.0) if rate else (delta, delta)
         nxt = np.asarray(batched_next(
-            step, params, stats, jnp.asarray(np.stack([given, swell(given, d)])),
-            jnp.asarray(np.stack([cur, swell(cur, d)])), jnp.asarray(node_type),
+            step, params, stats, jnp.asarray(np.stack([given, swell(given, d, by_given)])),
+            jnp.asarray(np.stack([cur, swell(cur, d, by_cur)])), jnp.asarray(node_type),
             jnp.asarray(mask)), np.float64)[:, clot]
         base, pert = (size(o, d) for o in nxt - nxt.mean(axis=1, keepdims=True))
         out.append((float(np.sum(pert * base) / np.sum(base * base)) - 1.0) / delta)

@@ -152,7 +152,10 @@ class LearnedStep:
             ``StepOutput.output`` is then the acceleration the step applied, normalised. 0: off.
         outlet_radius: > 0: clot nodes also get where the clot is against the vessel's open
             ends, ahead of its motion (:func:`thrombojax.graph.vessel_axis.outlet_features`,
-            this width, scaled); 0: off. (The order of all extra features:
+            this width, scaled); 0: off.
+        shape_radius: > 0: clot nodes also get their place along the clot's motion and the
+            clot's length and width (:func:`thrombojax.graph.clot_shape.clot_shape_features`,
+            over this length, scaled); 0: off. (The order of all extra features:
             :mod:`thrombojax.simulator.features`.)
     """
 
@@ -168,13 +171,14 @@ class LearnedStep:
     prior_radius: float = 0.0
     lateral_radius: float = 0.0
     outlet_radius: float = 0.0
+    shape_radius: float = 0.0
 
     def __post_init__(self) -> None:
         if self.frame not in FRAMES:
             raise ConfigError(f"learned step: frame must be one of {list(FRAMES)}, "
                               f"got {self.frame!r}")
         for name in ("wall_cutoff", "axis_radius", "prior_radius", "lateral_radius",
-                     "outlet_radius"):
+                     "outlet_radius", "shape_radius"):
             if not (getattr(self, name) >= 0 and getattr(self, name) < float("inf")):
                 raise ConfigError(f"learned step: {name} must be a finite number >= 0, "
                                   f"got {getattr(self, name)!r}")
@@ -375,11 +379,11 @@ def make_step(model: Surrogate, frame: str = "global", wall_cutoff: float = 0.0,
               stop_history_gradient: bool = False, wall_signed: bool = False,
               axis_radius: float = 0.0, prior_radius: float = 0.0,
               lateral_radius: float = 0.0, wall_clot_mean: bool = False,
-              outlet_radius: float = 0.0) -> LearnedStep:
+              outlet_radius: float = 0.0, shape_radius: float = 0.0) -> LearnedStep:
     """The learned simulator of a surrogate in ``frame``, with wall features when
     ``wall_cutoff > 0``, vessel-axis features when ``axis_radius > 0``, the vessel-following
     prior when ``prior_radius > 0``, the lateral hold when ``lateral_radius > 0``, outlet
-    features when ``outlet_radius > 0``, the cell
+    features when ``outlet_radius > 0``, clot shape features when ``shape_radius > 0``, the cell
     ``grid`` where it pays and ``history`` previous frames (module docstring, LearnedStep)."""
     return LearnedStep(model=model, frame=frame, wall_cutoff=float(wall_cutoff), grid=grid,
                        history=history, stop_history_gradient=bool(stop_history_gradient),
@@ -387,4 +391,5 @@ def make_step(model: Surrogate, frame: str = "global", wall_cutoff: float = 0.0,
                        prior_radius=float(prior_radius),
                        lateral_radius=float(lateral_radius),
                        wall_clot_mean=bool(wall_clot_mean),
-                       outlet_radius=float(outlet_radius))
+                       outlet_radius=float(outlet_radius),
+                       shape_radius=float(shape_radius))

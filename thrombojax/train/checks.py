@@ -36,6 +36,7 @@ _RULES: dict[str, tuple[str, float, bool, bool]] = {
     "follow_axis": ("float", 0.0, True, False),
     "lateral_hold": ("float", 0.0, True, False),
     "outlet_features": ("float", 0.0, True, False),
+    "shape_features": ("float", 0.0, True, False),
     "noise_gamma": ("float", 0.0, True, False),
     "noise_shared": ("float", 0.0, True, False),
     "wall_noise": ("float", 0.0, True, False),

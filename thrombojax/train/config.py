@@ -145,6 +145,9 @@ class TrainConfig:
             the clot's motion tells clot nodes where the clot is against the vessel's open ends
             (per node and clot-wide; negative nearing an outlet), so that the step can see the
             outlet coming (0: off; :func:`thrombojax.graph.vessel_axis.outlet_features`).
+        shape_features: length, in vessel radii, that clot nodes' place along the clot's motion
+            and the clot's length and width are given over, so the step sees a stretched clot
+            (0: off; :func:`thrombojax.graph.clot_shape.clot_shape_features`).
         history: frames before t the learned step reads (1: the velocity alone; H >= 2: also
             the H - 1 accelerations before t, :mod:`thrombojax.simulator.step`); windows grow
             by H - 1 frames.
@@ -202,6 +205,7 @@ class TrainConfig:
     follow_axis: float = 0.0
     lateral_hold: float = 0.0
     outlet_features: float = 0.0
+    shape_features: float = 0.0
     wall_signed: bool = False
     wall_clot_mean: bool = False
     history: int = 1

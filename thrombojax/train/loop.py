@@ -228,7 +228,7 @@ def train(
     radius = (vessel_radius(ds) / float(scaling.scale)
               if cfg.noise_std > 0 or cfg.wall_features > 0 or cfg.wall_noise > 0
               or cfg.axis_features > 0 or cfg.follow_axis > 0 or cfg.lateral_hold > 0
-              or cfg.outlet_features > 0
+              or cfg.outlet_features > 0 or cfg.shape_features > 0
               or cfg.history_noise > 0 or cfg.select_by == "rollout" else 0.0)
     wall_cutoff = cfg.wall_features * radius
     step_fn = make_step(model, cfg.frame, wall_cutoff, history=cfg.history,
@@ -237,7 +237,8 @@ def train(
                         prior_radius=cfg.follow_axis * radius,
                         lateral_radius=cfg.lateral_hold * radius,
                         wall_clot_mean=cfg.wall_clot_mean,
-                        outlet_radius=cfg.outlet_features * radius)
+                        outlet_radius=cfg.outlet_features * radius,
+                        shape_radius=cfg.shape_features * radius)
     state = init_state(step_fn, tx, init_key, batch_of(plan_of(epoch=0)[0]))
     run_config = {
         **RunConfig(model=model_name, dataset=str(pathlib.Path(dataset_path).resolve()),
@@ -246,7 +247,7 @@ def train(
         "dataset_fingerprint": fingerprint, "wall_cutoff": wall_cutoff,
         "axis_radius": step_fn.axis_radius, "prior_radius": step_fn.prior_radius,
         "lateral_radius": step_fn.lateral_radius, "outlet_radius": step_fn.outlet_radius,
-        "units": str(ds.attrs.get("units", "")),
+        "shape_radius": step_fn.shape_radius, "units": str(ds.attrs.get("units", "")),
         "steps_per_epoch": steps_per_epoch, "total_steps": total_steps, "devices": mesh.size,
         "split": split.to_dict(),
     }
