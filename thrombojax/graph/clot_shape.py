@@ -3,7 +3,7 @@ long and wide the whole clot is.
 
 Why: rolled out alone, the vessel-frame BendVessel models' clots stretch along their motion
 (the front runs up to 6 r ahead of the true front while the rear keeps to the true rear), and a
-step keeps 92-98 % of a stretch it is given even when trained with stretch noise
+step keeps 92-97 % of a stretch it is given even when trained with stretch noise 0.1
 (``experiments/results/ladder_budget/bendvessel_shapes/stretch/README.md``). A stretch is a
 property of the whole clot: a message-passing step with a few blocks sees only its graph
 neighbours' displacements, where a 10 % stretch is a small change of edge lengths, so it cannot
