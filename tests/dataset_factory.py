@@ -354,3 +354,20 @@ def lattice_clot_window(speed: float = 0.05, *, spacing: float = 0.15, frames: i
     out[:, (nt == NodeType.CLOT) & mask, 0] += speed * np.arange(frames, dtype=np.float32)[:, None]
     return jnp.asarray(out), jnp.asarray(nt), jnp.asarray(mask)
 
+
+def stretch_carry_after_training(step, make_window, stats, *, stretch_noise: float) -> float:
+    """Train ``step`` with stretch noise on nine windows ``make_window(speed, seed=i)`` (speeds
+    0.04, 0.05 and 0.06 per frame, 1,200 Adam steps), then return the share of a 5 % stretch
+    along the motion that its next clot keeps
+    (:func:`thrombojax.eval.drift.swell_carry` with ``along_motion=True``), the mean over two
+    new windows (seeds 11 and 7)."""
+    from thrombojax.eval.drift import swell_carry
+
+    batch = window_batch([make_window((0.04, 0.05, 0.06)[i % 3], seed=i) for i in range(9)])
+    params = train_tiny_step(step, batch, stats, steps=1200, stretch_noise=stretch_noise)
+    carry = []
+    for seed in (11, 7):
+        frames, nt, mask = make_window(0.05, seed=seed)
+        carry.append(swell_carry(step, params, stats, np.asarray(frames), np.asarray(nt), [1, 2],
+                                 delta=0.05, mask=np.asarray(mask), along_motion=True))
+    return float(np.mean(carry))

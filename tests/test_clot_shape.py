@@ -112,25 +112,16 @@ def test_cli_trains_with_shape_features_and_reloads_the_step(tmp_path):
 
 
 def _stretch_carry_after_training(shape_radius: float) -> float:
-    """Train the tiny step with stretch noise 0.3 on clots that are random clouds of nodes
-    (:func:`dataset_factory.ring_clot_window`, nine draws, 1,200 Adam steps), then return the
-    share of a 5 % stretch along the motion that its next clot keeps, the mean over two new
-    clouds."""
-    from dataset_factory import ring_clot_window, train_tiny_step, window_batch
-    from test_speed_noise import SPEEDS, STATS
-
-    from thrombojax.eval.drift import swell_carry
+    """The tiny step (with the shape features when ``shape_radius > 0``) trained with stretch
+    noise 0.3 on clots that are random clouds of nodes
+    (:func:`dataset_factory.stretch_carry_after_training` on
+    :func:`dataset_factory.ring_clot_window`): the share of a 5 % stretch it keeps."""
+    from dataset_factory import ring_clot_window, stretch_carry_after_training
+    from test_speed_noise import STATS
 
     step = make_step(create_model("mgn", get_config("mgn", tiny=True, max_neighbors=8,
                                                     radius=0.45)), shape_radius=shape_radius)
-    batch = window_batch([ring_clot_window(SPEEDS[i % 3], seed=i) for i in range(9)])
-    params = train_tiny_step(step, batch, STATS, steps=1200, stretch_noise=0.3)
-    carry = []
-    for seed in (11, 7):
-        frames, nt, mask = ring_clot_window(0.05, seed=seed)
-        carry.append(swell_carry(step, params, STATS, np.asarray(frames), np.asarray(nt), [1, 2],
-                                 delta=0.05, mask=np.asarray(mask), along_motion=True))
-    return float(np.mean(carry))
+    return stretch_carry_after_training(step, ring_clot_window, STATS, stretch_noise=0.3)
 
 
 def test_shape_features_let_a_model_see_and_take_back_a_stretch():

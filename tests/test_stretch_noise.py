@@ -14,13 +14,8 @@ from __future__ import annotations
 import jax
 import numpy as np
 import pytest
-from dataset_factory import (
-    lattice_clot_window,
-    ring_clot_window,
-    train_tiny_step,
-    window_batch,
-)
-from test_speed_noise import SPEEDS, STATS, _batch, _tiny_step, _window
+from dataset_factory import lattice_clot_window, ring_clot_window, stretch_carry_after_training
+from test_speed_noise import STATS, _batch, _tiny_step, _window
 
 from thrombojax.errors import ConfigError
 from thrombojax.eval.drift import swell_carry
@@ -91,18 +86,11 @@ def test_the_training_loss_uses_the_stretch_noise():
 
 
 def _stretch_carry_after_training(stretch_noise: float) -> float:
-    """Train the tiny step on true lattice clots (nine orientations, 0.04, 0.05 or 0.06 per
-    frame, 1,200 Adam steps), then return the share of a 5 % stretch along the motion that its
-    next clot keeps, the mean over two lattices turned other ways."""
-    step = _tiny_step()
-    batch = window_batch([lattice_clot_window(SPEEDS[i % 3], seed=i) for i in range(9)])
-    params = train_tiny_step(step, batch, STATS, steps=1200, stretch_noise=stretch_noise)
-    carry = []
-    for seed in (11, 7):
-        frames, nt, mask = lattice_clot_window(0.05, seed=seed)
-        carry.append(swell_carry(step, params, STATS, np.asarray(frames), np.asarray(nt), [1, 2],
-                                 delta=0.05, mask=np.asarray(mask), along_motion=True))
-    return float(np.mean(carry))
+    """The tiny step trained on true lattice clots of nine orientations
+    (:func:`dataset_factory.stretch_carry_after_training`): the share of a 5 % stretch it
+    keeps on two lattices turned other ways."""
+    return stretch_carry_after_training(_tiny_step(), lattice_clot_window, STATS,
+                                        stretch_noise=stretch_noise)
 
 
 def test_stretch_noise_teaches_a_model_to_take_a_stretch_back():
