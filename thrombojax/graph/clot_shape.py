@@ -18,10 +18,23 @@ import jax.numpy as jnp
 
 from thrombojax.types import clot_mask
 
-__all__ = ["CLOT_SHAPE_FEATURES", "clot_shape_features"]
+__all__ = ["CLOT_SHAPE_FEATURES", "clot_motion", "clot_shape_features"]
 
 CLOT_SHAPE_FEATURES: int = 3
 """Width of :func:`clot_shape_features`."""
+
+
+def clot_motion(x_prev: jax.Array, x_cur: jax.Array,
+                clot: jax.Array) -> tuple[jax.Array, jax.Array]:
+    """``(centre [3], u [3])``: the centroid of the ``clot`` nodes (``[N]`` bool) of s_t and
+    the clot's direction of motion, its mean displacement from s_{t-1}, unit (zero at rest or
+    with no clot node). Jittable; safe to differentiate at rest."""
+    w = clot.astype(x_cur.dtype)[:, None]
+    count = jnp.maximum(jnp.sum(w), 1.0)
+    v = jnp.sum((x_cur - x_prev) * w, axis=0) / count
+    speed = jnp.sqrt(jnp.sum(v * v))
+    u = jnp.where(speed > 0, v / jnp.where(speed > 0, speed, 1.0), 0.0)
+    return jnp.sum(x_cur * w, axis=0) / count, u
 
 
 def clot_shape_features(
@@ -52,14 +65,11 @@ def clot_shape_features(
     clot = clot_mask(node_type, jnp.asarray(mask, bool))
     w = clot.astype(x_cur.dtype)[:, None]
     count = jnp.maximum(jnp.sum(w), 1.0)
-    centre = jnp.sum(x_cur * w, axis=0) / count
-    v = jnp.sum((x_cur - x_prev) * w, axis=0) / count
-    speed = jnp.sqrt(jnp.sum(v * v))
-    u = jnp.where(speed > 0, v / jnp.where(speed > 0, speed, 1.0), 0.0)
+    centre, u = clot_motion(x_prev, x_cur, clot)
     rel = (x_cur - centre) * w
     along = rel @ u
     across = rel - along[:, None] * u
-    moving = (speed > 0).astype(x_cur.dtype)  # across u: 2 axes; at rest all 3
+    moving = jnp.sum(u * u)  # 1 moving (across u: 2 axes), 0 at rest (all 3)
     sigma_along = jnp.sqrt(jnp.sum(along ** 2) / count)
     sigma_across = jnp.sqrt(jnp.sum(across ** 2) / (count * (3.0 - moving)))
     feats = jnp.stack([along, jnp.full_like(along, sigma_along),

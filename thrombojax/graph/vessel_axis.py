@@ -26,6 +26,7 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
+from thrombojax.graph.clot_shape import clot_motion
 from thrombojax.graph.wall_nodes import (
     clot_wall_mean,
     local_wall_plane,
@@ -199,9 +200,6 @@ def outlet_features(
     w = jnp.where(vessel[None, :], jnp.exp(-pairwise_sq_distances(x_cur) / radius**2), 0.0)
     total = jnp.sum(w, axis=1)
     m = (w @ x_cur) / jnp.maximum(total, 1e-30)[:, None] - x_cur  # [N, 3]
-    count = jnp.maximum(jnp.sum(clot), 1)
-    v = jnp.sum(jnp.where(clot[:, None], x_cur - x_prev, 0.0), axis=0) / count
-    speed = jnp.sqrt(jnp.sum(v * v))
-    u = jnp.where(speed > 0, v / jnp.where(speed > 0, speed, 1.0), 0.0)
+    _, u = clot_motion(x_prev, x_cur, clot)
     e = jnp.where(clot & (total > 0), (m @ u) / radius, 0.0)[:, None]
     return jnp.concatenate([e, clot_wall_mean(e, node_type, mask)], axis=-1)

@@ -3,7 +3,7 @@
 - :mod:`.step`: the learned step (inputs -> graph -> model -> denormalise -> integrate).
 - :mod:`.context`: what a rollout computes once for every step (the rigid vessel's wall search).
 - :mod:`.features`: the extra node features of the step's input (history, wall, vessel axis,
-  outlet), in their order.
+  outlet, clot shape), in their order.
 - :mod:`.rollout`: the step in a ``lax.scan`` (rollouts, the k-step loss).
 - :mod:`.wall`, :mod:`.wall_build`: the rigid vessel wall as a pytree (triangles, or nodes and
   normals) and its exact nearest-point query; built on the host from a dataset frame.

@@ -44,31 +44,26 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
+from thrombojax.graph.clot_shape import clot_motion
 from thrombojax.train.noise import noise_off
 from thrombojax.types import clot_mask
 
-__all__ = ["add_stretch_noise", "add_swell_noise", "scale_about_centroid", "stretch_along"]
+__all__ = ["add_stretch_noise", "add_swell_noise", "scale_about_centroid"]
 
 
-def scale_about_centroid(points: jax.Array, moving: jax.Array, factor: jax.Array) -> jax.Array:
+def scale_about_centroid(points: jax.Array, moving: jax.Array, factor: jax.Array,
+                         direction: jax.Array | None = None) -> jax.Array:
     """The ``moving`` nodes of ``points [..., n_nodes, 3]`` scaled by ``factor [...]`` about
-    their centroid (the mean over ``moving`` of each frame); the other nodes as given."""
+    their centroid (the mean over ``moving`` of each frame); the other nodes as given. With a
+    unit (or zero) vector ``direction [3]``, only each offset's component along it is scaled
+    (a stretch; a zero direction changes nothing)."""
     w = moving.astype(points.dtype)[:, None]
     centre = jnp.sum(points * w, axis=-2, keepdims=True) / jnp.maximum(jnp.sum(w), 1.0)
-    scaled = centre + factor[..., None, None] * (points - centre)
+    offset = points - centre
+    if direction is not None:
+        offset = jnp.sum(offset * direction, axis=-1, keepdims=True) * direction
+    scaled = points + (factor[..., None, None] - 1.0) * offset
     return jnp.where(moving[:, None], scaled, points)
-
-
-def stretch_along(points: jax.Array, moving: jax.Array, factor: jax.Array,
-                  direction: jax.Array) -> jax.Array:
-    """The ``moving`` nodes of ``points [..., n_nodes, 3]`` stretched by ``factor [...]`` about
-    their centroid along the unit (or zero) vector ``direction [3]``: each offset's component
-    along it scaled, the rest kept; the other nodes as given. A zero direction changes nothing."""
-    w = moving.astype(points.dtype)[:, None]
-    centre = jnp.sum(points * w, axis=-2, keepdims=True) / jnp.maximum(jnp.sum(w), 1.0)
-    along = jnp.sum((points - centre) * direction, axis=-1, keepdims=True)
-    stretched = points + (factor[..., None, None] - 1.0) * along * direction
-    return jnp.where(moving[:, None], stretched, points)
 
 
 def _shape_factors(key, frames, std, current, gamma, what):
@@ -137,9 +132,5 @@ def add_stretch_noise(
         return frames
     factor = _shape_factors(key, frames, std, current, gamma, "stretch noise")
     moving = clot_mask(node_type, mask)
-    w = moving.astype(frames.dtype)[:, None]
-    motion = jnp.sum((frames[current] - frames[current - 1]) * w, axis=0) / jnp.maximum(
-        jnp.sum(w), 1.0)
-    norm = jnp.sqrt(jnp.sum(motion * motion))
-    direction = jnp.where(norm > 0, motion / jnp.where(norm > 0, norm, 1.0), 0.0)
-    return stretch_along(frames, moving, factor, direction)
+    _, direction = clot_motion(frames[current - 1], frames[current], moving)
+    return scale_about_centroid(frames, moving, factor, direction)
