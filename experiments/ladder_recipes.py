@@ -15,6 +15,7 @@ __all__ = ["COMMON", "STUDY_SIZE", "SMALL_MGN", "SIGNED", "HISTNOISE", "WALK", "
            "AXIS_SWELL10_FRAME_TSCALE_OUTLET_HN", "AXIS_SWELL10_FRAME_TSCALE_OUTLET_NOHIST",
            "AXIS_SWELL10_FRAME_TSCALE_STRETCH", "AXIS_SWELL10_FRAME_TSCALE_STRETCH30",
            "AXIS_SWELL10_FRAME_TSCALE_STRETCH_NOHIST", "AXIS_SWELL10_FRAME_TSCALE_STRETCH_SHAPE",
+           "AXIS_SWELL10_FRAME_TSCALE_REST", "AXIS_SWELL10_FRAME_TSCALE_REST_STRETCH",
            "AXIS_SIGNED_SWELL10",
            "AXIS_SWELL10_CM", "FOLLOW_NOHIST_CM", "FOLLOW_NOHIST_CM_FRAME", "FOLLOW_HOLD",
            "FOLLOW_KSTEP", "FOLLOW_KSTEP6", "FOLLOW_SPEED", "NOISE", "ROTATION", "HISTORY",
@@ -123,6 +124,14 @@ AXIS_SWELL10_FRAME_TSCALE_STRETCH_NOHIST = {**AXIS_SWELL10_FRAME_TSCALE_OUTLET_N
 # which a message-passing step cannot see from its neighbours (rungs ``..._stretch_shape*``)
 AXIS_SWELL10_FRAME_TSCALE_STRETCH_SHAPE = {**AXIS_SWELL10_FRAME_TSCALE_STRETCH,
                                            "shape_features": 1.0}
+# the clot's rest state read by the step: MeshGraphNet's clot-clot edges get their displacement
+# in the simulation's first frame beside the current one (DeepMind's deforming plate), so each
+# edge's strain is an input; the swell noise's swollen clots are then strained ones (rungs
+# ``..._rest*``)
+AXIS_SWELL10_FRAME_TSCALE_REST = {**AXIS_SWELL10_FRAME_TSCALE, "rest_edges": True}
+# and the stretch noise 0.1 with it: the stretched inputs are then strained edges the step sees
+# (rungs ``..._rest_stretch*``)
+AXIS_SWELL10_FRAME_TSCALE_REST_STRETCH = {**AXIS_SWELL10_FRAME_TSCALE_STRETCH, "rest_edges": True}
 # the 10 % swell noise with the wall term weighted 3x: rungs ``axis_swell10_wall3*``
 AXIS_SWELL10_WALL3 = {**AXIS_SWELL10, "wall_loss_weight": 3.0}
 # 3 %: on ClotEntry's 5 r clot it moves the ends by about what 5 % does on BendVessel's 3 r clot

@@ -294,7 +294,8 @@ RUNGS: tuple[Rung, ...] = (
     *last_alone_and_guarded("axis_swell10_frame_tscale2", AXIS_SWELL10_FRAME_TSCALE2),
     # it with each addition ``ladder_recipes.AXIS_SWELL10_FRAME_TSCALE_<SUFFIX>``
     *(rung for suffix in ("cm", "room", "outlet", "outlet_hn", "outlet_nohist", "stretch",
-                          "stretch30", "stretch_nohist", "stretch_shape")
+                          "stretch30", "stretch_nohist", "stretch_shape", "rest",
+                          "rest_stretch")
       for rung in last_alone_and_guarded(
           f"axis_swell10_frame_tscale_{suffix}",
           getattr(ladder_recipes, f"AXIS_SWELL10_FRAME_TSCALE_{suffix.upper()}"))),

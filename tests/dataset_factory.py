@@ -360,10 +360,14 @@ def stretch_carry_after_training(step, make_window, stats, *, stretch_noise: flo
     0.04, 0.05 and 0.06 per frame, 1,200 Adam steps), then return the share of a 5 % stretch
     along the motion that its next clot keeps
     (:func:`thrombojax.eval.drift.swell_carry` with ``along_motion=True``), the mean over two
-    new windows (seeds 11 and 7)."""
+    new windows (seeds 11 and 7). A step with ``rest_edges`` trains on windows led by their
+    first frame, the clot's rest state (as ``make_batch(..., rest=True)``)."""
     from thrombojax.eval.drift import swell_carry
 
-    batch = window_batch([make_window((0.04, 0.05, 0.06)[i % 3], seed=i) for i in range(9)])
+    windows = [make_window((0.04, 0.05, 0.06)[i % 3], seed=i) for i in range(9)]
+    if step.rest_edges:
+        windows = [(jnp.concatenate([f[:1], f]), nt, m) for f, nt, m in windows]
+    batch = window_batch(windows)
     params = train_tiny_step(step, batch, stats, steps=1200, stretch_noise=stretch_noise)
     carry = []
     for seed in (11, 7):

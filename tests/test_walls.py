@@ -11,7 +11,6 @@ from thrombojax.simulator.guards import wall_from_simulation
 from thrombojax.simulator.walls import (
     WALL_FEATURES,
     fraction_outside_wall,
-    rest_edge_features,
     wall_features,
 )
 
@@ -85,17 +84,3 @@ def test_wall_features_rotate_with_the_vessel(kind):
     assert (base[:, 0] < 1).mean() > 0.3, "too few nodes near the wall to test anything"
     np.testing.assert_allclose(turned[:, 0], base[:, 0], atol=2e-5)
     np.testing.assert_allclose(turned[:, 1:], base[:, 1:] @ rot.T, atol=2e-4)
-
-
-def test_rest_edge_features():
-    x_ref = jnp.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 2.0, 0.0], [5.0, 5.0, 5.0]])
-    senders = jnp.array([1, 2, 0, 4, 3])
-    receivers = jnp.array([0, 1, 2, 4, 0])  # edge 3 is a sentinel (N = 4)
-    clot = jnp.array([True, True, True, False])
-    f = jax.jit(lambda s, r, m: rest_edge_features(x_ref, s, r, clot_mask=m))
-    disp, norm = f(senders, receivers, clot)
-    np.testing.assert_allclose(disp[:3], [[1, 0, 0], [-1, 2, 0], [0, -2, 0]])
-    np.testing.assert_allclose(norm[:3], [1, np.sqrt(5), 2], rtol=1e-6)
-    np.testing.assert_array_equal(np.asarray(disp[3:]), 0.0)  # sentinel, vessel end
-    disp_all, _ = f(senders, receivers, jnp.ones(4, bool))
-    np.testing.assert_allclose(disp_all[4], [5.0, 5.0, 5.0])

@@ -60,6 +60,9 @@ class ModelInput:
         mask: ``[n_nodes]`` bool, True for real nodes, False for padding.
         extra: ``[n_nodes, F]`` more per-node features appended to :attr:`node_features`
             (the learned step's wall features), or None.
+        rest: ``[n_nodes, 3]`` the rest state (the simulation's first frame, in the frame of
+            :attr:`positions`) whose clot-clot edge displacements a model with edge features
+            reads beside the current ones (``make_step(..., rest_edges=True)``), or None.
     """
 
     positions: jax.Array
@@ -67,6 +70,7 @@ class ModelInput:
     node_type: jax.Array
     mask: jax.Array
     extra: jax.Array | None = None
+    rest: jax.Array | None = None
 
     @property
     def n_nodes(self) -> int:

@@ -2,14 +2,7 @@
 
 from __future__ import annotations
 
-from thrombojax.cli.options import (
-    NN_FLOAT,
-    NN_INT,
-    POS_FLOAT,
-    POS_INT,
-    angle,
-    output_flags,
-)
+from thrombojax.cli.options import NN_FLOAT, NN_INT, POS_FLOAT, POS_INT, angle, output_flags
 
 __all__ = ["REGISTRARS"]
 
@@ -168,6 +161,9 @@ def _add_train(sub) -> None:
     p.add_argument("--shape-features", type=NN_FLOAT, help="tell clot nodes their place "
                    "along the clot's motion and the clot's length and width, over this many "
                    "radii, so the step sees a stretched clot (default 0: off)")
+    p.add_argument("--rest-edges", action="store_true", default=None, help="meshgraphnet: "
+                   "give clot-clot edges their displacement in the clot's rest state (the "
+                   "simulation's first frame) beside the current one, so the step sees strain")
     p.add_argument("--wall-signed", action="store_true", default=None, help="with "
                    "--wall-features: the features are the signed distance to the wall "
                    "(positive outside) and its outward normal, which tell a node that crossed "
@@ -199,12 +195,10 @@ def _run_train(args) -> int:
              "n_test", "tiny", "rollout_steps", "noise_gamma", "pushforward_steps",
              "curriculum_epochs", "frame", "wall_features", "history", "noise_walk",
              "stop_history_gradient", "noise_shared", "wall_noise", "wall_signed",
-             "wall_clot_mean",
-             "history_noise", "speed_noise", "direction_noise", "swell_noise", "stretch_noise",
-             "time_scale",
-             "clot_mean_weight", "wall_loss_weight", "select_by",
+             "wall_clot_mean", "history_noise", "speed_noise", "direction_noise", "swell_noise",
+             "stretch_noise", "time_scale", "clot_mean_weight", "wall_loss_weight", "select_by",
              "axis_features", "follow_axis", "lateral_hold", "outlet_features",
-             "shape_features")
+             "shape_features", "rest_edges")
     overrides = {k: getattr(args, k) for k in names if getattr(args, k) is not None}
     from thrombojax.train.recipes import DEFAULT_RECIPE, recipe
 

@@ -49,6 +49,8 @@ class Batch:
 
     Attributes:
         frames: ``[B, W, n_budget, 3]`` float32 (s_{t-1}, s_t, ..., s_{t+W-2}); padding is 0.
+            Made with ``rest=True``, ``[B, 1 + W, n_budget, 3]``: the simulation's first frame
+            (the clot's rest state) leads every window.
         node_type: ``[B, n_budget]`` int32 NodeType (padding: VESSEL).
         mask: ``[B, n_budget]`` bool, True on real nodes (all False for an empty padding sample).
         generated: ``[B]`` bool, True where the sample is to be replaced by BaryCentricSampling.
@@ -178,6 +180,7 @@ def make_batch(
     seed: int = 0,
     epoch: int = 0,
     position: int = 0,
+    rest: bool = False,
 ) -> Batch:
     """Assemble one padded batch on the host.
 
@@ -188,12 +191,14 @@ def make_batch(
         nodes_per_sample: subsample this many nodes per sample (clot fraction kept).
         seed, epoch, position: the subsampling of sample ``b`` is seeded with
             ``(seed, epoch, position, b)``.
+        rest: every window is led by its simulation's first frame, the clot's rest state (same
+            nodes; for a learned step with ``rest_edges``).
     Returns:
         A :class:`Batch` of numpy arrays.
     """
     size = entries.shape[0]
-    length = store.length
-    frames = np.zeros((size, length, budget, 3), np.float32)
+    length, lead = store.length, int(rest)
+    frames = np.zeros((size, lead + length, budget, 3), np.float32)
     node_type = np.full((size, budget), int(NodeType.VESSEL), np.int32)
     mask = np.zeros((size, budget), bool)
     for b, window in enumerate(entries[:, 0]):
@@ -211,7 +216,9 @@ def make_batch(
                 f"the padding budget {budget}"
             )
         n = idx.shape[0]
-        frames[b, :, :n] = store.positions[sim][t - 1 : t - 1 + length][:, idx]
+        frames[b, lead:, :n] = store.positions[sim][t - 1 : t - 1 + length][:, idx]
+        if rest:
+            frames[b, 0, :n] = store.positions[sim][0, idx]
         node_type[b, :n] = types[idx]
         mask[b, :n] = True
     return Batch(frames=frames, node_type=node_type, mask=mask, generated=entries[:, 1] > 0)

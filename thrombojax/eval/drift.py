@@ -48,6 +48,7 @@ import numpy as np
 from thrombojax.errors import ConfigError
 from thrombojax.eval.metrics import clot_centroids
 from thrombojax.eval.single_step import batched_next
+from thrombojax.simulator.previous import history_frames
 from thrombojax.simulator.step import LearnedStep
 from thrombojax.train.noise import rotation_matrix
 from thrombojax.types import TargetStats, clot_mask
@@ -273,7 +274,7 @@ def swell_carry(
 
     out = []
     for t in np.asarray(frames, int):
-        cur, given = positions[t], np.asarray(step.previous(positions, t), np.float32)
+        cur, (rest, given) = positions[t], _split_rest(step, step.previous(positions, t))
         d = None
         if along_motion:
             motion = (positions[t, clot] - positions[t - 1, clot]).mean(axis=0)
@@ -284,7 +285,8 @@ def swell_carry(
         lags = np.arange(step.history, 0, -1) if step.history > 1 else np.asarray(1)
         by_given, by_cur = (-delta * lags, 0.0) if rate else (delta, delta)
         nxt = np.asarray(batched_next(
-            step, params, stats, jnp.asarray(np.stack([given, swell(given, d, by_given)])),
+            step, params, stats, jnp.asarray(np.stack([_join_rest(rest, given), _join_rest(
+                rest, swell(given, d, by_given))])),
             jnp.asarray(np.stack([cur, swell(cur, d, by_cur)])), jnp.asarray(node_type),
             jnp.asarray(mask)), np.float64)[:, clot]
         base, pert = (size(o, d) for o in nxt - nxt.mean(axis=1, keepdims=True))
@@ -299,14 +301,15 @@ def _per_frame(step, params, stats, positions, node_type, mask, frames, what, mo
     positions, node_type, mask, clot = _arrays(positions, node_type, mask)
     out = []
     for t in np.asarray(frames, int):
-        cur, given = positions[t], np.asarray(step.previous(positions, t), np.float32)
+        cur, (rest, given) = positions[t], _split_rest(step, step.previous(positions, t))
         prev = given.reshape(-1, *cur.shape)  # [H, n_nodes, 3] (history 1 gives [n_nodes, 3])
         v = cur[clot].mean(axis=0) - prev[-1][clot].mean(axis=0)
         speed = float(np.linalg.norm(v))
         if speed == 0.0:
             raise ConfigError(f"{what}: the clot does not move at frame {t}")
         along = v / speed
-        moved = move(prev, cur, clot, along, speed).reshape(given.shape)
+        moved = _join_rest(rest, move(prev, cur, clot, along, speed).reshape(given.shape))
+        given = _join_rest(rest, given)
         # the window as it is and with the inputs moved, in one call
         nxt = np.asarray(batched_next(step, params, stats, jnp.asarray(np.stack([given, moved])),
                                       jnp.asarray(np.stack([cur, cur])), jnp.asarray(node_type),
@@ -314,6 +317,21 @@ def _per_frame(step, params, stats, positions, node_type, mask, frames, what, mo
         base, pert = nxt[:, clot].mean(axis=1)
         out.append(share(pert - base, along, speed))
     return np.asarray(out)
+
+
+def _split_rest(step, given):
+    """``(rest frame or None, the frames before t)`` of a step's ``x_prev`` as float32: the
+    carries perturb the frames before t and never the clot's rest state."""
+    given = np.asarray(given, np.float32)
+    return (given[0] if step.rest_edges else None,
+            history_frames(step.history, step.rest_edges, given))
+
+
+def _join_rest(rest, frames):
+    """The ``x_prev`` of the frames before t (``[H, N, 3]`` or ``[N, 3]``) and a rest frame."""
+    if rest is None:
+        return frames
+    return np.concatenate([rest[None], np.reshape(frames, (-1, *rest.shape))])
 
 
 def _arrays(positions, node_type, mask):

@@ -65,10 +65,25 @@ __all__ = ["EdgeMLP", "MeshGraphNet", "MeshGraphNetSurrogate", "edge_features"]
 OUTPUT_DIM: int = 3
 
 
-def edge_features(positions: jax.Array, graph: NeighborList) -> jax.Array:
-    """Edge input ``[n_nodes * K, 4]``: ``x_i - x_j`` and its norm (zeros on sentinel edges)."""
+def edge_features(
+    positions: jax.Array, graph: NeighborList, rest: jax.Array | None = None,
+    clot: jax.Array | None = None,
+) -> jax.Array:
+    """Edge input ``[n_nodes * K, 4]``: ``x_i - x_j`` and its norm (zeros on sentinel edges).
+
+    With ``rest [n_nodes, 3]`` (the rest state) and ``clot [n_nodes]`` (bool), ``[n_nodes * K,
+    8]``: also the rest-state displacement ``r_i - r_j`` and its norm on clot-clot edges, zeros
+    on the others (the vessel is rigid: its edges never change length).
+    """
     dx, dist = edge_displacements(jax.lax.stop_gradient(positions), graph)
-    return jnp.concatenate([dx, dist], axis=-1)
+    if rest is None:
+        return jnp.concatenate([dx, dist], axis=-1)
+    n, clot = positions.shape[0], jnp.asarray(clot, bool)
+    both = clot[:, None] & clot[jnp.minimum(graph.indices, n - 1)] & (graph.indices < n)
+    r_dx, _ = edge_displacements(jax.lax.stop_gradient(rest), graph)
+    r_dx = jnp.where(both.reshape(-1, 1), r_dx, 0.0)
+    r_dist = jnp.sqrt(jnp.sum(r_dx * r_dx, axis=-1, keepdims=True))
+    return jnp.concatenate([dx, dist, r_dx, r_dist], axis=-1)
 
 
 class EdgeMLP(nn.Module):
@@ -138,7 +153,8 @@ class MeshGraphNet(nn.Module):
         cfg, hidden = self.config, self.config.hidden
         n, k = graph.indices.shape
         g: jraph.GraphsTuple = to_graphs_tuple(
-            graph, inputs.node_features, edge_features(inputs.positions, graph)
+            graph, inputs.node_features,
+            edge_features(inputs.positions, graph, inputs.rest, inputs.clot_mask),
         )
         def call(module, *args):
             return remat_call(module, *args) if cfg.remat else module(*args)
@@ -173,3 +189,4 @@ class MeshGraphNetSurrogate(FlaxSurrogate):
     module_cls = MeshGraphNet
     self_loops = False
     graph_local = True
+    rest_edges = True

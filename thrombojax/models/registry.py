@@ -92,6 +92,8 @@ class FlaxSurrogate:
             graph (a :class:`~thrombojax.graph.neighbors.NeighborList`), so the model may run a
             batch as one flat graph (:mod:`thrombojax.simulator.flat`); False where a model
             mixes all nodes of a sample (attention, a ball tree).
+        rest_edges (class attribute): the model's edges read the rest-state displacement of
+            ``ModelInput.rest`` when it is set (``make_step(..., rest_edges=True)``).
     """
 
     name: str
@@ -99,6 +101,7 @@ class FlaxSurrogate:
     module_cls: ClassVar[type[nn.Module]]
     self_loops: ClassVar[bool] = False
     graph_local: ClassVar[bool] = False
+    rest_edges: ClassVar[bool] = False
 
     @property
     def module(self) -> nn.Module:

@@ -26,6 +26,7 @@ from thrombojax.graph.clot_shape import clot_shape_features
 from thrombojax.graph.vessel_axis import axis_velocity_features, outlet_features
 from thrombojax.graph.wall_nodes import clot_wall_mean, signed_wall_features, wall_node_features
 from thrombojax.simulator.kinematics import past_accelerations
+from thrombojax.simulator.previous import history_frames
 
 __all__ = ["extra_features"]
 
@@ -34,14 +35,16 @@ def extra_features(step, stats, x_prev, x_cur, node_type, mask, velocity_scale, 
     """``[N, F]`` the extra features of ``step`` (a
     :class:`~thrombojax.simulator.step.LearnedStep`) at frame t, or None when it has none.
 
-    ``x_prev`` is the step's ``x_prev`` (``[H, N, 3]`` with history), ``x_cur`` s_t, both in
+    ``x_prev`` is the step's ``x_prev`` (``[H, N, 3]`` with history, led by the rest frame
+    with ``rest_edges``), ``x_cur`` s_t, both in
     the coordinates of the model's inputs; ``stats`` None (initialisation) gives unit scales;
     ``axes`` is :func:`~thrombojax.simulator.context.shared_axes` of ``x_cur``.
     """
     last = step.last_previous(x_prev)
     extra = []
     if step.history > 1:
-        feats = past_accelerations(x_prev, x_cur, mask, 1.0 if stats is None else
+        feats = past_accelerations(history_frames(step.history, step.rest_edges, x_prev), x_cur,
+                                   mask, 1.0 if stats is None else
                                    jnp.sqrt(jnp.mean(stats.std ** 2)))
         extra.append(jax.lax.stop_gradient(feats) if step.stop_history_gradient else feats)
     if step.wall_cutoff > 0:

@@ -41,7 +41,8 @@ __all__ = ["FlatStep", "flat_batch_ok", "flatten_graphs"]
 def flat_batch_ok(step: LearnedStep) -> bool:
     """Whether the step's surrogate gives the same outputs on a flat batch graph (and the step
     reads one previous frame: the flat step does not carry a history)."""
-    return bool(getattr(step.model, "graph_local", False)) and step.history == 1
+    return (bool(getattr(step.model, "graph_local", False)) and step.history == 1
+            and not step.rest_edges)
 
 
 def flatten_graphs(graphs: NeighborList) -> NeighborList:
@@ -76,10 +77,11 @@ class FlatStep:
     step: LearnedStep
 
     def __post_init__(self) -> None:
-        if self.step.history != 1:
+        if self.step.history != 1 or self.step.rest_edges:
             raise ConfigError(f"the flat batch graph runs steps with one previous frame; this "
-                              f"step reads history = {self.step.history}: batch it with "
-                              f"jax.vmap instead (flat_batch=False)")
+                              f"step reads history = {self.step.history}"
+                              f"{' and the rest state' if self.step.rest_edges else ''}: batch "
+                              f"it with jax.vmap instead (flat_batch=False)")
         if not flat_batch_ok(self.step):
             raise ConfigError(f"model '{self.step.name}' mixes the nodes of a sample outside its "
                               f"neighbour list, so a flat batch graph would mix the samples; "

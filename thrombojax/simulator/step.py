@@ -46,7 +46,10 @@ simulation), and the last acceleration is its best witness: extrapolated alone, 
 constant velocity in one step on BendVessel's rollout phase (``docs/rollouts.md``). ``x_prev`` is
 then ``[H, n_nodes, 3]``, the frames ``s_{t-H} .. s_{t-1}`` oldest first
 (:meth:`LearnedStep.previous` takes them from a trajectory, :meth:`LearnedStep.shift` advances them
-in a rollout); ``H = 1`` keeps ``x_prev [n_nodes, 3]`` = s_{t-1}.
+in a rollout); ``H = 1`` keeps ``x_prev [n_nodes, 3]`` = s_{t-1}. ``make_step(model,
+rest_edges=True)`` also reads the clot's rest state, the simulation's first frame, at the head
+of ``x_prev`` (:mod:`thrombojax.simulator.previous`), and MeshGraphNet's clot-clot edges get
+their rest-state displacement beside the current one (DeepMind's deforming-plate model).
 
 Rollout context: the vessel is rigid, so ``step.context(x0, node_type, mask)`` searches its wall
 once (:mod:`thrombojax.simulator.context`) and ``step(..., context=...)`` reads the search, with
@@ -78,6 +81,7 @@ from thrombojax.graph.grid import GridSpec
 from thrombojax.graph.neighbors import graph_overflow
 from thrombojax.graph.vessel_axis import clot_lateral_mean, follow_axis_offset
 from thrombojax.models.registry import Surrogate
+from thrombojax.simulator import previous as prev
 from thrombojax.simulator.context import StepContext, make_context, shared_axes
 from thrombojax.simulator.features import extra_features
 from thrombojax.simulator.kinematics import (
@@ -157,6 +161,9 @@ class LearnedStep:
             clot's length and width (:func:`thrombojax.graph.clot_shape.clot_shape_features`,
             over this length, scaled); 0: off. (The order of all extra features:
             :mod:`thrombojax.simulator.features`.)
+        rest_edges: the step also reads the clot's rest state (``x_prev`` led by the
+            simulation's first frame, :mod:`thrombojax.simulator.previous`) and the model's
+            edges get their rest-state displacement (a model that reads edge features only).
     """
 
     model: Surrogate
@@ -172,6 +179,7 @@ class LearnedStep:
     lateral_radius: float = 0.0
     outlet_radius: float = 0.0
     shape_radius: float = 0.0
+    rest_edges: bool = False
 
     def __post_init__(self) -> None:
         if self.frame not in FRAMES:
@@ -188,38 +196,31 @@ class LearnedStep:
                 self.history < 1:
             raise ConfigError(f"learned step: history must be an int >= 1 (frames before t), "
                               f"got {self.history!r}")
+        if self.rest_edges and not getattr(self.model, "rest_edges", False):
+            raise ConfigError(f"learned step: model '{self.model.name}' has no edge features "
+                              f"to give rest-state displacements to (rest_edges: meshgraphnet)")
 
-    def previous(self, positions, t):
-        """The ``x_prev`` of frame(s) ``t`` of a trajectory ``positions [T, n_nodes, 3]``:
-        ``positions[t - 1]`` (history 1) or ``positions[t - H .. t - 1]`` stacked on an axis
-        after ``t``'s (``[..., H, n_nodes, 3]``). Frames before 0 are frame 0 (the clot at rest
-        before the record starts). ``t`` is an int or an int array, every ``t >= 1``."""
-        t = np.asarray(t)
-        if np.any(t < 1):
-            raise ConfigError(f"learned step: frame t = {t.min()} has no previous frame (t >= 1)")
-        if self.history == 1:
-            return positions[t - 1]
-        if t.ndim == 0 and t >= self.history:  # a slice (also of a traced window)
-            return positions[int(t) - self.history:int(t)]
-        lags = np.arange(-self.history, 0)
-        return positions[np.maximum(t[..., None] + lags, 0)]
+    def previous(self, positions, t, rest=None):
+        """The ``x_prev`` of frame(s) ``t >= 1`` (int or int array) of a trajectory ``positions
+        [T, n_nodes, 3]`` (:func:`thrombojax.simulator.previous.previous`; ``rest``: the rest
+        frame when ``positions`` does not start at the simulation's first frame)."""
+        return prev.previous(self.history, self.rest_edges, positions, t, rest)
 
     def last_previous(self, x_prev: jax.Array) -> jax.Array:
         """s_{t-1} of an ``x_prev`` (see :meth:`previous`)."""
-        return x_prev if self.history == 1 else x_prev[..., -1, :, :]
+        return prev.last_previous(self.history, self.rest_edges, x_prev)
 
     def shift(self, x_prev: jax.Array, x_cur: jax.Array) -> jax.Array:
-        """The ``x_prev`` of the next step: ``x_cur`` (history 1), else the last H frames."""
-        if self.history == 1:
-            return x_cur
-        return jnp.concatenate([x_prev[..., 1:, :, :], x_cur[..., None, :, :]], axis=-3)
+        """The ``x_prev`` of the next step: the rest frame kept, the last H frames moved on."""
+        return prev.shift(self.history, self.rest_edges, x_prev, x_cur)
 
     def check_previous(self, x_prev, n_nodes: int, what: str) -> None:
         """Raise :class:`ConfigError` if ``x_prev`` does not have this step's history shape."""
-        want = (n_nodes, 3) if self.history == 1 else (self.history, n_nodes, 3)
+        want = prev.previous_shape(self.history, self.rest_edges, n_nodes)
         if tuple(np.shape(x_prev)) != want:
-            raise ConfigError(f"{what}: the step reads {self.history} previous frame(s), so "
-                              f"x_prev must be {want}, got {tuple(np.shape(x_prev))}")
+            rest = " and the rest frame" if self.rest_edges else ""
+            raise ConfigError(f"{what}: the step reads {self.history} previous frame(s){rest}, "
+                              f"so x_prev must be {want}, got {tuple(np.shape(x_prev))}")
 
     @property
     def name(self) -> str:
@@ -277,7 +278,7 @@ class LearnedStep:
         velocity_scale = 1.0 if stats is None else stats.velocity_std
         inputs = make_input(self.last_previous(x_prev), x_cur, node_type, mask, velocity_scale)
         extra = extra_features(self, stats, x_prev, x_cur, node_type, mask, velocity_scale, axes)
-        return inputs if extra is None else inputs.replace(extra=extra)
+        return inputs.replace(extra=extra, rest=prev.rest_frame(self.rest_edges, x_prev))
 
     def prior(self, x_last, x_cur, node_type, mask, *, context: StepContext | None = None,
               axis: jax.Array | None = None) -> jax.Array | float:
@@ -379,12 +380,14 @@ def make_step(model: Surrogate, frame: str = "global", wall_cutoff: float = 0.0,
               stop_history_gradient: bool = False, wall_signed: bool = False,
               axis_radius: float = 0.0, prior_radius: float = 0.0,
               lateral_radius: float = 0.0, wall_clot_mean: bool = False,
-              outlet_radius: float = 0.0, shape_radius: float = 0.0) -> LearnedStep:
+              outlet_radius: float = 0.0, shape_radius: float = 0.0,
+              rest_edges: bool = False) -> LearnedStep:
     """The learned simulator of a surrogate in ``frame``, with wall features when
     ``wall_cutoff > 0``, vessel-axis features when ``axis_radius > 0``, the vessel-following
     prior when ``prior_radius > 0``, the lateral hold when ``lateral_radius > 0``, outlet
     features when ``outlet_radius > 0``, clot shape features when ``shape_radius > 0``, the cell
-    ``grid`` where it pays and ``history`` previous frames (module docstring, LearnedStep)."""
+    ``grid`` where it pays, ``history`` previous frames and the rest state when ``rest_edges``
+    (module docstring, LearnedStep)."""
     return LearnedStep(model=model, frame=frame, wall_cutoff=float(wall_cutoff), grid=grid,
                        history=history, stop_history_gradient=bool(stop_history_gradient),
                        wall_signed=bool(wall_signed), axis_radius=float(axis_radius),
@@ -392,4 +395,4 @@ def make_step(model: Surrogate, frame: str = "global", wall_cutoff: float = 0.0,
                        lateral_radius=float(lateral_radius),
                        wall_clot_mean=bool(wall_clot_mean),
                        outlet_radius=float(outlet_radius),
-                       shape_radius=float(shape_radius))
+                       shape_radius=float(shape_radius), rest_edges=bool(rest_edges))

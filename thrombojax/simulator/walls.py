@@ -1,11 +1,12 @@
 """Model inputs that generalise across vessels and orientations, and the outside-wall measure.
 
+(The rest-state edge displacements of DeepMind's deforming-plate MeshGraphNet are the model's
+own edge input: ``thrombojax.models.meshgraphnet.edge_features``, for ``rest_edges``.)
+
 * :func:`wall_features`: per node the distance and unit direction to its nearest wall point
   (:func:`thrombojax.simulator.wall.nearest_wall_point`), cut off at a radius: ``[min(d, cutoff)
   / cutoff, direction * (d < cutoff)]``. Distances are invariant and directions rotate with the
   vessel, like the relative displacements a graph network already sees.
-* :func:`rest_edge_features`: rest-state displacements ``x_ref[s] - x_ref[r]`` and their norm
-  on clot-clot edges (the world/mesh-space pair of DeepMind's deforming-plate MeshGraphNet).
 * :func:`fraction_outside_wall`: the fraction of clot nodes outside the wall, under ``jit``
   (the same outside test as :func:`thrombojax.simulator.guards.contain`).
 """
@@ -16,9 +17,9 @@ import jax
 import jax.numpy as jnp
 
 from thrombojax.graph.wall_nodes import clipped_distance_direction
-from thrombojax.simulator.wall import Wall, nearest_wall_point, safe_norm
+from thrombojax.simulator.wall import Wall, nearest_wall_point
 
-__all__ = ["WALL_FEATURES", "wall_features", "rest_edge_features", "fraction_outside_wall"]
+__all__ = ["WALL_FEATURES", "wall_features", "fraction_outside_wall"]
 
 WALL_FEATURES: int = 4
 """Width of :func:`wall_features`: clipped distance / cutoff and a 3-D direction."""
@@ -42,32 +43,6 @@ def wall_features(
     if node_mask is not None:
         feats = jnp.where(node_mask[:, None], feats, 0.0)
     return feats
-
-
-def rest_edge_features(
-    x_ref: jax.Array,
-    senders: jax.Array,
-    receivers: jax.Array,
-    *,
-    clot_mask: jax.Array | None = None,
-) -> tuple[jax.Array, jax.Array]:
-    """Rest-state displacement of every edge, zero on edges that are not clot-clot. Jittable.
-
-    Args:
-        x_ref: ``[N, 3]`` rest positions (e.g. the first frame).
-        senders, receivers: ``[E]`` int edge ends; entries outside ``[0, N)`` (the sentinel
-            ``N`` of ``thrombojax.graph.neighbors.senders_receivers``) give zeros.
-        clot_mask: ``[N]`` bool; when given, edges with an end outside it give zeros.
-    Returns:
-        ``(disp [E, 3] = x_ref[s] - x_ref[r], norm [E])``.
-    """
-    n = x_ref.shape[0]
-    ok = (senders >= 0) & (senders < n) & (receivers >= 0) & (receivers < n)
-    s, r = jnp.where(ok, senders, 0), jnp.where(ok, receivers, 0)
-    if clot_mask is not None:
-        ok = ok & clot_mask[s] & clot_mask[r]
-    disp = jnp.where(ok[:, None], x_ref[s] - x_ref[r], 0.0)
-    return disp, safe_norm(disp)
 
 
 def fraction_outside_wall(

@@ -96,7 +96,7 @@ def check_train_values(cfg: Any) -> None:
     Also: the memory ``bary_ratio`` asks for even on one window
     (:func:`thrombojax.train.memory.check_train_memory`; the training loop checks again with the
     dataset's sizes), ``tiny``, ``noise_walk``, ``stop_history_gradient``,
-    ``uniform_rotation`` and ``wall_signed`` booleans (``wall_signed`` only with
+    ``uniform_rotation``, ``rest_edges`` and ``wall_signed`` booleans (``wall_signed`` only with
     ``wall_features``), ``history_noise`` only with ``history >= 2``,
     ``model_config`` an object; upper bounds in :data:`_HIGH`.
     """
@@ -108,7 +108,7 @@ def check_train_values(cfg: Any) -> None:
         budget=1, length=3, max_neighbors=cfg.bary_max_neighbors,
     ), values={"bary_ratio": float(cfg.bary_ratio), "bary_max_neighbors": cfg.bary_max_neighbors})
     for flag in ("tiny", "noise_walk", "stop_history_gradient", "wall_signed", "wall_clot_mean",
-                 "uniform_rotation"):
+                 "uniform_rotation", "rest_edges"):
         if not isinstance(getattr(cfg, flag, False), bool):
             raise ConfigError(f"{_option(flag)} ({flag}) must be true or false, got "
                               f"{getattr(cfg, flag)!r}")

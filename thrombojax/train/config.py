@@ -148,6 +148,10 @@ class TrainConfig:
         shape_features: length, in vessel radii, that clot nodes' place along the clot's motion
             and the clot's length and width are given over, so the step sees a stretched clot
             (0: off; :func:`thrombojax.graph.clot_shape.clot_shape_features`).
+        rest_edges: the step also reads the clot's rest state (the simulation's first frame)
+            and MeshGraphNet's clot-clot edges get their rest-state displacement beside the
+            current one, so the step sees each edge's strain (DeepMind's deforming plate;
+            :mod:`thrombojax.simulator.previous`); every training window carries one more frame.
         history: frames before t the learned step reads (1: the velocity alone; H >= 2: also
             the H - 1 accelerations before t, :mod:`thrombojax.simulator.step`); windows grow
             by H - 1 frames.
@@ -206,6 +210,7 @@ class TrainConfig:
     lateral_hold: float = 0.0
     outlet_features: float = 0.0
     shape_features: float = 0.0
+    rest_edges: bool = False
     wall_signed: bool = False
     wall_clot_mean: bool = False
     history: int = 1

@@ -212,8 +212,8 @@ def train(
     check_dense_inputs(cfg, budget, where=str(dataset_path))
     check_train_memory(estimate_train_memory(
         n_windows=len(train_store), n_val_windows=len(val_store) if val_store else 0,
-        bary_ratio=cfg.bary_ratio, batch_size=batch_size, budget=budget, length=length,
-        max_neighbors=cfg.bary_max_neighbors,
+        bary_ratio=cfg.bary_ratio, batch_size=batch_size, budget=budget,
+        length=length + cfg.rest_edges, max_neighbors=cfg.bary_max_neighbors,
     ), values={k: getattr(cfg, k) for k in _MEMORY_OPTIONS}, where=str(dataset_path))
     plan_of = functools.partial(epoch_plan, len(train_store), bary_ratio=cfg.bary_ratio,
                                 batch_size=batch_size, seed=cfg.seed)
@@ -221,8 +221,8 @@ def train(
     total_steps = cfg.epochs * steps_per_epoch
     schedule = make_schedule(lr, total_steps, round(cfg.warmup_epochs * steps_per_epoch))
     tx = make_optimizer(schedule, weight_decay=cfg.weight_decay, grad_clip=cfg.grad_clip)
-    batch_of = functools.partial(make_batch, train_store, budget=budget,
-                                 nodes_per_sample=cfg.nodes_per_sample, seed=cfg.seed)
+    batch_of = functools.partial(make_batch, train_store, budget=budget, seed=cfg.seed,
+                                 nodes_per_sample=cfg.nodes_per_sample, rest=cfg.rest_edges)
     run_key, init_key = jax.random.split(jax.random.PRNGKey(cfg.seed))
     # radii -> scaled; the radius (possibly a geometric estimate) only when it is needed
     radius = (vessel_radius(ds) / float(scaling.scale)
@@ -238,7 +238,7 @@ def train(
                         lateral_radius=cfg.lateral_hold * radius,
                         wall_clot_mean=cfg.wall_clot_mean,
                         outlet_radius=cfg.outlet_features * radius,
-                        shape_radius=cfg.shape_features * radius)
+                        shape_radius=cfg.shape_features * radius, rest_edges=cfg.rest_edges)
     state = init_state(step_fn, tx, init_key, batch_of(plan_of(epoch=0)[0]))
     run_config = {
         **RunConfig(model=model_name, dataset=str(pathlib.Path(dataset_path).resolve()),

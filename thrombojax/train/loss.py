@@ -72,6 +72,7 @@ def window_loss_terms(
     train: bool,
     rng: jax.Array | None,
     wall_term: bool = False,
+    rest: jax.Array | None = None,
 ) -> dict[str, jax.Array]:
     """Run the learned step on one window and return summed squared errors over its clot nodes.
 
@@ -87,13 +88,16 @@ def window_loss_terms(
         train: model in training mode (dropout); rng: its PRNG key.
         wall_term: also return ``wall_sum``, the predictions' squared excess through the wall
             (:mod:`thrombojax.train.wall_loss`; static: off, no wall search is compiled).
+        rest: ``[n_nodes, 3]`` the clot's rest state (the simulation's first frame), which a
+            step with ``rest_edges`` reads (required then: a window starts later).
     Returns:
         ``{"loss_sum", "mse_sum", "clot_mean_sum", "count"}`` (and ``"wall_sum"``): squared
         errors summed over clot nodes and averaged over steps and x, y, z; the clot-wide part
         (module docstring); the number of clot nodes.
     """
     frames, positions, outputs = _predict(step, params, stats, frames, node_type, mask, k=k,
-                                          pushforward=pushforward, train=train, rng=rng)
+                                          pushforward=pushforward, train=train, rng=rng,
+                                          rest=rest)
     return _terms(step, stats, frames, node_type, mask, positions, outputs, wall_term)
 
 
@@ -129,20 +133,26 @@ def flat_window_loss_terms(
                                                          outputs)
 
 
-def _predict(step, params, stats, frames, node_type, mask, *, k, pushforward, train, rng):
+def _predict(step, params, stats, frames, node_type, mask, *, k, pushforward, train, rng,
+             rest=None):
     """The window's first ``H + k + 1`` frames after the push-forward steps (``H`` the step's
     history: 1 for one velocity), and the ``k`` predicted positions and outputs (``[k, ...]``);
-    frames lead with the window axis ``W``."""
+    frames lead with the window axis ``W``; ``rest``: the rest frame (``rest_edges``)."""
     step.require_dense("the training loss")
     h = step.history
+    if getattr(step, "rest_edges", False) and rest is None:
+        raise ValueError("the step reads the rest state: a training window needs its rest frame")
+
+    def previous(window):
+        return step.previous(window, h) if rest is None else step.previous(window, h, rest)
+
     need = pushforward + k + h + 1
     if k < 1 or pushforward < 0 or frames.shape[0] < need:
         raise ValueError(f"k = {k} loss steps after {pushforward} push-forward steps with "
                          f"{h} previous frame(s) need a window of >= {need} frames, got "
                          f"{frames.shape[0]}")
     if pushforward:
-        pushed, _ = unroll(step, params, stats, step.previous(frames, h), frames[h], node_type,
-                           mask,
+        pushed, _ = unroll(step, params, stats, previous(frames), frames[h], node_type, mask,
                            pushforward, train=train,
                            rng=None if rng is None else jax.random.fold_in(rng, 10_007))
         pushed = jax.lax.stop_gradient(pushed)
@@ -150,10 +160,10 @@ def _predict(step, params, stats, frames, node_type, mask, *, k, pushforward, tr
         frames = jnp.concatenate([start, frames[pushforward + h + 1:need]])
     frames = frames[:k + h + 1]
     if k == 1:
-        out = step(params, stats, step.previous(frames, h), frames[h], node_type, mask,
+        out = step(params, stats, previous(frames), frames[h], node_type, mask,
                    train=train, rng=rng)
         return frames, out.positions[None], out.output[None]
-    positions, outputs = unroll(step, params, stats, step.previous(frames, h), frames[h],
+    positions, outputs = unroll(step, params, stats, previous(frames), frames[h],
                                 node_type, mask, k, train=train, rng=rng)
     return frames, positions, outputs
 

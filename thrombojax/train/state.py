@@ -100,7 +100,8 @@ class TrainedModel:
                          lateral_radius=float(self.config.get("lateral_radius", 0.0)),
                          wall_clot_mean=self.run.train.wall_clot_mean,
                          outlet_radius=float(self.config.get("outlet_radius", 0.0)),
-                         shape_radius=float(self.config.get("shape_radius", 0.0)))
+                         shape_radius=float(self.config.get("shape_radius", 0.0)),
+                         rest_edges=self.run.train.rest_edges)
 
 
 def _manager(directory: pathlib.Path, *, read_only: bool = False) -> ocp.CheckpointManager:

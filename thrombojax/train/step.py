@@ -130,7 +130,9 @@ def batch_loss(
     Args:
         model: the surrogate (or its learned step). params, stats: its variables and statistics.
         batch: :class:`thrombojax.data.batching.Batch` (``frames [B, W, N, 3]``,
-            ``W >= pushforward + k + H + 1``, ``H`` the step's history).
+            ``W >= pushforward + k + H + 1``, ``H`` the step's history; a step with
+            ``rest_edges`` reads ``[B, 1 + W, N, 3]``, the rest frame first: ``make_batch(...,
+            rest=True)``).
         rng: PRNG key for noise and dropout (``None`` in evaluation).
         train: training mode (noise, dropout).
         noise_std, noise_gamma, noise_walk, noise_shared: training noise
@@ -184,14 +186,16 @@ def batch_loss(
     wall_term = bool(wall_loss_weight)  # static: no wall search compiled when off
 
     def one(frames, node_type, mask, key):
-        model_key = None
+        model_key, rest = None, None
+        if step.rest_edges:  # the window is led by the rest frame, which no noise touches
+            rest, frames = frames[0], frames[1:]
         if key is not None:
             noise_key, model_key = jax.random.split(key)
             if train:
                 frames = corrupt(noise_key, frames, node_type, mask)
         return window_loss_terms(
             step, params, stats, frames, node_type, mask, k=k, pushforward=pushforward,
-            train=train, rng=model_key, wall_term=wall_term,
+            train=train, rng=model_key, wall_term=wall_term, rest=rest,
         )
 
     if flat_batch and flat_batch_ok(step):
@@ -371,7 +375,8 @@ def init_state(
         A :class:`TrainState` at step 0.
     """
     frames, step = batch.frames[0], _as_step(model)
-    h = step.history  # the window's current frame is frames[h]
-    params = step.init(rng, step.previous(frames, h), frames[h], batch.node_type[0],
+    h = step.history  # the window's current frame is frames[h] (after the rest frame)
+    rest, frames = (frames[0], frames[1:]) if step.rest_edges else (None, frames)
+    params = step.init(rng, step.previous(frames, h, rest), frames[h], batch.node_type[0],
                        batch.mask[0])
     return TrainState(step=jnp.zeros((), jnp.int32), params=params, opt_state=tx.init(params))

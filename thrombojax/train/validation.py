@@ -203,7 +203,7 @@ def eval_batches(store, budget: int, batch_size: int, cfg) -> list:
     plan = plan[order].reshape(-1, batch_size, 2)
     return [
         make_batch(store, entries, budget, nodes_per_sample=cfg.nodes_per_sample,
-                   seed=cfg.seed, epoch=_EVAL_EPOCH, position=i)
+                   seed=cfg.seed, epoch=_EVAL_EPOCH, position=i, rest=cfg.rest_edges)
         for i, entries in enumerate(plan)
     ]
 

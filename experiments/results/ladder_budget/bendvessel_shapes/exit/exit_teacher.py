@@ -67,7 +67,7 @@ def along_accelerations(run: str, data: str, names: list[str]) -> dict:
         c_pred = _centroids(trained, prev, pos[frames], nt, clot)
         if step.history == 2:  # a_{t-1} = 0: s_{t-2} := 2 s_{t-1} - s_t
             flat = prev.copy()
-            flat[:, 0] = 2 * prev[:, 1] - pos[frames]
+            flat[:, -2] = 2 * prev[:, -1] - pos[frames]  # (after a rest frame if any)
             c_flat = _centroids(trained, flat, pos[frames], nt, clot)
         v = c[frames] - c[frames - 1]
         along = v / np.linalg.norm(v, axis=1, keepdims=True)

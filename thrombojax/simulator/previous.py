@@ -1,0 +1,93 @@
+"""The frames before t a learned step reads (its ``x_prev``), as pure functions.
+
+A :class:`~thrombojax.simulator.step.LearnedStep` with ``history = H`` reads the ``H`` frames
+``s_{t-H} .. s_{t-1}``; with ``rest_edges`` it also reads the clot's rest state, the
+simulation's first frame (the clot before it is driven), which its model compares the current
+edges with (rest-state edge displacements, as DeepMind's deforming-plate MeshGraphNet). The
+step's ``x_prev`` is then:
+
+=================  ===================  =============================================
+history            rest_edges False     rest_edges True
+=================  ===================  =============================================
+1                  ``[N, 3]`` s_{t-1}    ``[2, N, 3]`` (rest, s_{t-1})
+H >= 2             ``[H, N, 3]``         ``[1 + H, N, 3]`` (rest, s_{t-H} .. s_{t-1})
+=================  ===================  =============================================
+
+(leading batch axes allowed). A rollout carries ``x_prev`` from step to step with :func:`shift`,
+which keeps the rest frame and moves the others on, so every consumer of the step (rollouts,
+ensembles, the unrolled loss, evaluation) passes the rest along without knowing it is there.
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from thrombojax.errors import ConfigError
+
+__all__ = ["previous", "last_previous", "history_frames", "rest_frame", "shift",
+           "previous_shape"]
+
+
+def _stacked(history: int, rest: bool) -> bool:
+    return history > 1 or rest
+
+
+def previous(history: int, rest: bool, positions, t, rest_positions=None):
+    """The ``x_prev`` of frame(s) ``t`` of a trajectory ``positions [T, N, 3]``.
+
+    Frames before 0 are frame 0 (the clot at rest before the record starts). ``t`` is an int or
+    an int array, every ``t >= 1``. The rest frame is ``positions[0]`` (a trajectory from its
+    first frame) unless ``rest_positions [N, 3]`` is given (a training window, which starts
+    later); it is broadcast over the axes of ``t``.
+    """
+    t = np.asarray(t)
+    if np.any(t < 1):
+        raise ConfigError(f"learned step: frame t = {t.min()} has no previous frame (t >= 1)")
+    if history == 1 and not rest:
+        return positions[t - 1]
+    if t.ndim == 0 and t >= history:  # a slice (also of a traced window)
+        frames = positions[int(t) - history:int(t)]
+    else:
+        frames = positions[np.maximum(t[..., None] + np.arange(-history, 0), 0)]
+    if not rest:
+        return frames
+    ref = positions[0] if rest_positions is None else rest_positions
+    xp = np if isinstance(frames, np.ndarray) and isinstance(ref, np.ndarray) else jnp
+    ref = xp.broadcast_to(ref, frames.shape[:-3] + (1,) + frames.shape[-2:])
+    return xp.concatenate([ref.astype(frames.dtype), frames], axis=-3)
+
+
+def last_previous(history: int, rest: bool, x_prev: jax.Array) -> jax.Array:
+    """s_{t-1} of an ``x_prev``."""
+    return x_prev[..., -1, :, :] if _stacked(history, rest) else x_prev
+
+
+def history_frames(history: int, rest: bool, x_prev: jax.Array) -> jax.Array:
+    """The frames before t without the rest frame (``[H, N, 3]``, or ``[N, 3]`` for H = 1)."""
+    if not rest:
+        return x_prev
+    return x_prev[..., 1:, :, :] if history > 1 else x_prev[..., 1, :, :]
+
+
+def rest_frame(rest: bool, x_prev: jax.Array) -> jax.Array | None:
+    """The rest frame of an ``x_prev`` (None when the step reads none)."""
+    return x_prev[..., 0, :, :] if rest else None
+
+
+def shift(history: int, rest: bool, x_prev: jax.Array, x_cur: jax.Array) -> jax.Array:
+    """The ``x_prev`` of the next step: the rest frame kept, the others moved on by ``x_cur``."""
+    if not _stacked(history, rest):
+        return x_cur
+    keep = 1 if rest else 0
+    moved = x_prev[..., keep + 1:, :, :] if history > 1 else x_prev[..., :0, :, :]
+    parts = [x_prev[..., :keep, :, :], moved, x_cur[..., None, :, :]]
+    return jnp.concatenate(parts, axis=-3)
+
+
+def previous_shape(history: int, rest: bool, n_nodes: int) -> tuple[int, ...]:
+    """The shape of one ``x_prev`` (no batch axes)."""
+    if not _stacked(history, rest):
+        return (n_nodes, 3)
+    return (history + int(rest), n_nodes, 3)
