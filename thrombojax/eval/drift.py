@@ -48,7 +48,7 @@ import numpy as np
 from thrombojax.errors import ConfigError
 from thrombojax.eval.metrics import clot_centroids
 from thrombojax.eval.single_step import batched_next
-from thrombojax.simulator.previous import history_frames
+from thrombojax.simulator.previous import history_frames, lead_with_rest, rest_frame
 from thrombojax.simulator.step import LearnedStep
 from thrombojax.train.noise import rotation_matrix
 from thrombojax.types import TargetStats, clot_mask
@@ -323,15 +323,13 @@ def _split_rest(step, given):
     """``(rest frame or None, the frames before t)`` of a step's ``x_prev`` as float32: the
     carries perturb the frames before t and never the clot's rest state."""
     given = np.asarray(given, np.float32)
-    return (given[0] if step.rest_edges else None,
+    return (rest_frame(step.rest_edges, given),
             history_frames(step.history, step.rest_edges, given))
 
 
 def _join_rest(rest, frames):
     """The ``x_prev`` of the frames before t (``[H, N, 3]`` or ``[N, 3]``) and a rest frame."""
-    if rest is None:
-        return frames
-    return np.concatenate([rest[None], np.reshape(frames, (-1, *rest.shape))])
+    return frames if rest is None else lead_with_rest(rest, frames)
 
 
 def _arrays(positions, node_type, mask):

@@ -80,10 +80,9 @@ def edge_features(
         return jnp.concatenate([dx, dist], axis=-1)
     n, clot = positions.shape[0], jnp.asarray(clot, bool)
     both = clot[:, None] & clot[jnp.minimum(graph.indices, n - 1)] & (graph.indices < n)
-    r_dx, _ = edge_displacements(jax.lax.stop_gradient(rest), graph)
-    r_dx = jnp.where(both.reshape(-1, 1), r_dx, 0.0)
-    r_dist = jnp.sqrt(jnp.sum(r_dx * r_dx, axis=-1, keepdims=True))
-    return jnp.concatenate([dx, dist, r_dx, r_dist], axis=-1)
+    r_dx, r_dist = edge_displacements(jax.lax.stop_gradient(rest), graph)
+    return jnp.concatenate([dx, dist, jnp.where(both.reshape(-1, 1), jnp.concatenate(
+        [r_dx, r_dist], axis=-1), 0.0)], axis=-1)
 
 
 class EdgeMLP(nn.Module):

@@ -92,9 +92,9 @@ class FlatStep:
         """Previous frames the step reads (always 1: see ``__post_init__``)."""
         return self.step.history
 
-    def previous(self, positions, t):
+    def previous(self, positions, t, rest=None):
         """As :meth:`LearnedStep.previous` (``positions`` lead with the frame axis)."""
-        return self.step.previous(positions, t)
+        return self.step.previous(positions, t, rest)
 
     def shift(self, x_prev: jax.Array, x_cur: jax.Array) -> jax.Array:
         """As :meth:`LearnedStep.shift`."""

@@ -26,8 +26,8 @@ import numpy as np
 
 from thrombojax.errors import ConfigError
 
-__all__ = ["previous", "last_previous", "history_frames", "rest_frame", "shift",
-           "previous_shape"]
+__all__ = ["previous", "lead_with_rest", "last_previous", "history_frames", "rest_frame",
+           "shift", "previous_shape"]
 
 
 def _stacked(history: int, rest: bool) -> bool:
@@ -53,9 +53,17 @@ def previous(history: int, rest: bool, positions, t, rest_positions=None):
         frames = positions[np.maximum(t[..., None] + np.arange(-history, 0), 0)]
     if not rest:
         return frames
-    ref = positions[0] if rest_positions is None else rest_positions
-    xp = np if isinstance(frames, np.ndarray) and isinstance(ref, np.ndarray) else jnp
-    ref = xp.broadcast_to(ref, frames.shape[:-3] + (1,) + frames.shape[-2:])
+    return lead_with_rest(positions[0] if rest_positions is None else rest_positions, frames)
+
+
+def lead_with_rest(rest_positions, frames):
+    """The ``x_prev`` of a rest frame ``[N, 3]`` and the frames before t (``[..., H, N, 3]``;
+    ``[N, 3]`` is one frame): the rest frame broadcast over the leading axes and put first.
+    numpy in, numpy out."""
+    xp = np if isinstance(frames, np.ndarray) and isinstance(rest_positions, np.ndarray) else jnp
+    if frames.ndim == 2:
+        frames = frames[None]
+    ref = xp.broadcast_to(rest_positions, frames.shape[:-3] + (1,) + frames.shape[-2:])
     return xp.concatenate([ref.astype(frames.dtype), frames], axis=-3)
 
 

@@ -143,27 +143,24 @@ def _predict(step, params, stats, frames, node_type, mask, *, k, pushforward, tr
     if getattr(step, "rest_edges", False) and rest is None:
         raise ValueError("the step reads the rest state: a training window needs its rest frame")
 
-    def previous(window):
-        return step.previous(window, h) if rest is None else step.previous(window, h, rest)
-
     need = pushforward + k + h + 1
     if k < 1 or pushforward < 0 or frames.shape[0] < need:
         raise ValueError(f"k = {k} loss steps after {pushforward} push-forward steps with "
                          f"{h} previous frame(s) need a window of >= {need} frames, got "
                          f"{frames.shape[0]}")
     if pushforward:
-        pushed, _ = unroll(step, params, stats, previous(frames), frames[h], node_type, mask,
-                           pushforward, train=train,
+        pushed, _ = unroll(step, params, stats, step.previous(frames, h, rest), frames[h],
+                           node_type, mask, pushforward, train=train,
                            rng=None if rng is None else jax.random.fold_in(rng, 10_007))
         pushed = jax.lax.stop_gradient(pushed)
         start = jnp.concatenate([frames[:h + 1], pushed])[-(h + 1):]
         frames = jnp.concatenate([start, frames[pushforward + h + 1:need]])
     frames = frames[:k + h + 1]
     if k == 1:
-        out = step(params, stats, previous(frames), frames[h], node_type, mask,
+        out = step(params, stats, step.previous(frames, h, rest), frames[h], node_type, mask,
                    train=train, rng=rng)
         return frames, out.positions[None], out.output[None]
-    positions, outputs = unroll(step, params, stats, previous(frames), frames[h],
+    positions, outputs = unroll(step, params, stats, step.previous(frames, h, rest), frames[h],
                                 node_type, mask, k, train=train, rng=rng)
     return frames, positions, outputs
 
