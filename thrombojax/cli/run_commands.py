@@ -177,6 +177,10 @@ def _add_train(sub) -> None:
                    "simulation, logged as val_rollout_* with its ratio to constant velocity; "
                    "the lowest full-length rollout MSE) or 'last' (the last epoch's, at the end "
                    "of the learning-rate decay)")
+    p.add_argument("--init-from", metavar="RUN", help="start from the weights of RUN (a run "
+                   "of the same model and step inputs; fine-tuning, e.g. with --rollout-steps)")
+    p.add_argument("--init-checkpoint", dest="init_which", choices=("best", "last"),
+                   help="which checkpoint of --init-from (default best)")
     p.add_argument("--n-val", type=NN_INT, help="validation simulations (default 2)")
     p.add_argument("--n-test", type=NN_INT, help="test simulations, never trained on (default 1)")
     p.add_argument("--tiny", action="store_true", default=None, help="tiny model config")
@@ -198,7 +202,7 @@ def _run_train(args) -> int:
              "wall_clot_mean", "history_noise", "speed_noise", "direction_noise", "swell_noise",
              "stretch_noise", "time_scale", "clot_mean_weight", "wall_loss_weight", "select_by",
              "axis_features", "follow_axis", "lateral_hold", "outlet_features",
-             "shape_features", "rest_edges")
+             "shape_features", "rest_edges", "init_from", "init_which")
     overrides = {k: getattr(args, k) for k in names if getattr(args, k) is not None}
     from thrombojax.train.recipes import DEFAULT_RECIPE, recipe
 

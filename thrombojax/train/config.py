@@ -165,6 +165,10 @@ class TrainConfig:
             alone on every validation simulation, logged as ``val_rollout_*``; the lowest
             full-length rollout MSE; :mod:`thrombojax.train.validation`) or ``"last"`` (the
             last epoch's: the end of the learning-rate decay).
+        init_from: a run directory whose weights start this training instead of random ones
+            (fine-tuning, e.g. with an unrolled loss after single-step training; the same
+            model and step inputs; the optimiser starts afresh; ``""``: off).
+        init_which: which checkpoint of ``init_from``: ``"best"`` or ``"last"``.
     """
 
     epochs: int = 300
@@ -219,6 +223,8 @@ class TrainConfig:
     model_config: dict = dataclasses.field(default_factory=dict)
     checkpoint_every: int = 0
     select_by: str = "mse"
+    init_from: str = ""
+    init_which: str = "best"
 
     def __post_init__(self) -> None:
         for name in ("train_sims", "val_sims", "test_sims"):
@@ -244,6 +250,10 @@ class TrainConfig:
         if self.select_by not in SELECT_BY:
             raise ConfigError(f"select_by must be one of {list(SELECT_BY)}, got "
                               f"{self.select_by!r}")
+        if not isinstance(self.init_from, str):
+            raise ConfigError(f"init_from must be a run directory, got {self.init_from!r}")
+        if self.init_which not in ("best", "last"):
+            raise ConfigError(f"init_which must be 'best' or 'last', got {self.init_which!r}")
         if self.frame not in FRAMES:
             raise ConfigError(f"frame must be one of {list(FRAMES)}, got {self.frame!r}")
 

@@ -23,7 +23,6 @@ every step at once (``tests/test_train_overlap.py``; speed: ``benchmarks/train_o
 from __future__ import annotations
 
 import functools
-import json
 import math
 import pathlib
 import time
@@ -65,11 +64,14 @@ from thrombojax.train.plots import plot_losses
 from thrombojax.train.schedule import make_optimizer, make_schedule
 from thrombojax.train.state import (
     TrainedModel,
+    append_log,
     latest_step,
     load_trained,
     read_run_config,
     restore_checkpoint,
     save_checkpoint,
+    truncate_log,
+    warm_start,
     write_run_config,
 )
 from thrombojax.train.step import (
@@ -240,6 +242,8 @@ def train(
                         outlet_radius=cfg.outlet_features * radius,
                         shape_radius=cfg.shape_features * radius, rest_edges=cfg.rest_edges)
     state = init_state(step_fn, tx, init_key, batch_of(plan_of(epoch=0)[0]))
+    if cfg.init_from and not resume:  # the weights of another run (fine-tuning)
+        state = warm_start(state, tx, cfg.init_from, cfg.init_which, model_name)
     run_config = {
         **RunConfig(model=model_name, dataset=str(pathlib.Path(dataset_path).resolve()),
                     train=cfg).to_dict(),
@@ -256,7 +260,7 @@ def train(
     if resume:
         state, run_key, meta = restore_checkpoint(out_dir / "checkpoints" / "last", state, run_key)
         best, acc = float(meta["best"]), np.asarray(meta["epoch_acc"], np.float64)
-        _truncate_log(out_dir / "metrics.jsonl", int(state.step))
+        truncate_log(out_dir / "metrics.jsonl", int(state.step))
     elif jax.process_index() == 0:
         write_run_config(out_dir, run_config)
         (out_dir / "metrics.jsonl").write_text("")
@@ -311,7 +315,7 @@ def train(
         nonlocal acc
         metrics = {k: float(v) for k, v in jax.device_get(device_metrics).items()}
         if not math.isfinite(metrics["loss"]):
-            _log(out_dir, {"event": "nan", "step": step + 1, "epoch": epoch, **metrics})
+            append_log(out_dir, {"event": "nan", "step": step + 1, "epoch": epoch, **metrics})
             raise TrainingDivergedError(
                 f"{out_dir}: training loss became {metrics['loss']} at step {step + 1} "
                 f"(epoch {epoch}); the last good checkpoint is kept in {ckpt / 'last'}; "
@@ -354,12 +358,12 @@ def train(
                 try:  # never save a checkpoint whose metrics are NaN / infinite
                     check_finite(record, f"{out_dir}: epoch {epoch + 1}")
                 except NonFiniteError as err:
-                    _log(out_dir, record)
+                    append_log(out_dir, record)
                     raise TrainingDivergedError(f"{err}; not saved, the last good checkpoint is "
                                                 f"kept in {ckpt / 'last'}") from err
                 if val_rollouts is not None:  # a diverged rollout is a result (None), not NaN
                     record |= val_rollouts(state.params)
-                _log(out_dir, record)
+                append_log(out_dir, record)
                 score = epoch_score(record, cfg.select_by)
                 acc = np.zeros(3)
                 if score < best or math.isinf(best):  # no finite rollout yet: the latest
@@ -383,18 +387,3 @@ def rollout_steps_at(epoch: int, k: int, curriculum_epochs: float) -> int:
         return k
     return int(max(1, min(k, 1 + math.floor(epoch * k / curriculum_epochs))))
 
-
-def _log(out_dir: pathlib.Path, record: dict) -> None:
-    if jax.process_index() != 0:
-        return
-    with open(out_dir / "metrics.jsonl", "a") as f:
-        f.write(json.dumps(record) + "\n")
-
-
-def _truncate_log(path: pathlib.Path, step: int) -> None:
-    """Drop log lines written after the checkpoint we resume from."""
-    if not path.is_file():
-        return
-    lines = [ln for ln in path.read_text().splitlines() if ln.strip()]
-    keep = [ln for ln in lines if json.loads(ln).get("step", 0) <= step]
-    path.write_text("".join(ln + "\n" for ln in keep))

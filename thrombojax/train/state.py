@@ -47,6 +47,9 @@ __all__ = [
     "load_trained",
     "write_run_config",
     "read_run_config",
+    "warm_start",
+    "append_log",
+    "truncate_log",
 ]
 
 
@@ -268,6 +271,53 @@ def load_trained(run_dir: str | pathlib.Path, *, which: str = "best") -> Trained
     return trained
 
 
+def warm_start(state: TrainState, tx: Any, run_dir: str | pathlib.Path, which: str,
+               model_name: str) -> TrainState:
+    """Start a training from another run's weights (fine-tuning): ``state`` (a fresh
+    :class:`TrainState`) with its params replaced by those of ``run_dir``'s ``which``
+    checkpoint and a fresh optimiser state for them, at step 0.
+
+    The other run must be of the same model with the same parameter shapes (the same model
+    config and the same step inputs); anything else is a :class:`ConfigError` naming both.
+    """
+    trained = load_trained(run_dir, which=which)
+    if trained.run.model != model_name:
+        raise ConfigError(f"--init-from {run_dir}: a '{trained.run.model}' run; this training "
+                          f"is of '{model_name}'")
+    want, got = _shapes(state.params), _shapes(trained.params)
+    if want != got:
+        diff = sorted(k for k in set(want) | set(got) if want.get(k) != got.get(k))[:3]
+        raise ConfigError(f"--init-from {run_dir}: its '{which}' weights do not fit this "
+                          f"training's model (other model config or step inputs?); e.g. "
+                          + ", ".join(f"{k}: {got.get(k)} there, {want.get(k)} here"
+                                      for k in diff))
+    params = jax.tree.map(lambda x, like: jnp.asarray(x, like.dtype), trained.params,
+                          state.params)
+    return TrainState(step=jnp.zeros((), jnp.int32), params=params, opt_state=tx.init(params))
+
+
+def append_log(out_dir: pathlib.Path, record: dict) -> None:
+    """Append one JSON line to ``out_dir/metrics.jsonl`` (process 0 only)."""
+    if jax.process_index() != 0:
+        return
+    with open(out_dir / "metrics.jsonl", "a") as f:
+        f.write(json.dumps(record) + "\n")
+
+
+def truncate_log(path: pathlib.Path, step: int) -> None:
+    """Drop log lines written after the checkpoint we resume from."""
+    if not path.is_file():
+        return
+    lines = [ln for ln in path.read_text().splitlines() if ln.strip()]
+    keep = [ln for ln in lines if json.loads(ln).get("step", 0) <= step]
+    path.write_text("".join(ln + "\n" for ln in keep))
+
+
+def _shapes(tree) -> dict:
+    flat = jax.tree_util.tree_flatten_with_path(tree)[0]
+    return {jax.tree_util.keystr(k): tuple(v.shape) for k, v in flat}
+
+
 def _check_params_fit(trained: TrainedModel, config_path: pathlib.Path, ckpt: pathlib.Path) -> None:
     """The checkpoint's parameter tree must be the one the config's model creates."""
     n = 8
@@ -280,10 +330,6 @@ def _check_params_fit(trained: TrainedModel, config_path: pathlib.Path, ckpt: pa
     except Exception:  # noqa: BLE001  a model whose init needs more than this: skip the check
         return
 
-    def shapes(tree) -> dict:
-        flat = jax.tree_util.tree_flatten_with_path(tree)[0]
-        return {jax.tree_util.keystr(k): tuple(v.shape) for k, v in flat}
-
-    if shapes(trained.params) != shapes(want):
+    if _shapes(trained.params) != _shapes(want):
         raise ConfigError(f"{ckpt}: the checkpoint's weights do not fit the model described by "
                           f"{config_path} (a config.json from another run or model?)")
