@@ -56,6 +56,13 @@ def test_weights_that_do_not_fit_are_refused_naming_the_run(tmp_path, capsys):
     err = capsys.readouterr().err
     assert f"--init-from {run}: its 'best' weights do not fit" in err
     assert "node_encoder" in err and "there" in err
+    assert main([*common[:-1], str(tmp_path / "nowhere"), "--model", "mgn", "--out",
+                 str(tmp_path / "c")]) == 2
+    assert f"--init-from {tmp_path / 'nowhere'}: " in capsys.readouterr().err
+    # the run it starts from is an input: never written over, not even with --force
+    assert main([*common, "--model", "mgn", "--out", str(run), "--force"]) == 2
+    assert "--init-from names the run this training would write over" in capsys.readouterr().err
+    assert (run / "checkpoints" / "best").is_dir() and (run / "config.json").is_file()
     assert main([*common, "--model", "transolver", "--out", str(tmp_path / "b")]) == 2
     assert f"--init-from {run}: a 'mgn' run; this training is of 'transolver'" in (
         capsys.readouterr().err)

@@ -157,6 +157,9 @@ def train(
     if dataset_path is None or model_name is None:
         raise ConfigError("train: name a dataset and a model (or a run's config.json as config)")
     model_name = canonical_name(model_name)
+    if cfg.init_from and pathlib.Path(cfg.init_from).resolve() == out_dir.resolve():
+        raise OutputError(f"{out_dir}: --init-from names the run this training would write "
+                          "over; give the fine-tuning a new --out")
     saved = None
     if resume:
         saved = read_run_config(out_dir)

@@ -280,7 +280,10 @@ def warm_start(state: TrainState, tx: Any, run_dir: str | pathlib.Path, which: s
     The other run must be of the same model with the same parameter shapes (the same model
     config and the same step inputs); anything else is a :class:`ConfigError` naming both.
     """
-    trained = load_trained(run_dir, which=which)
+    try:
+        trained = load_trained(run_dir, which=which)
+    except (FileNotFoundError, ConfigError) as err:
+        raise ConfigError(f"--init-from {run_dir}: {err}") from err
     if trained.run.model != model_name:
         raise ConfigError(f"--init-from {run_dir}: a '{trained.run.model}' run; this training "
                           f"is of '{model_name}'")
