@@ -28,11 +28,15 @@ from thrombojax.errors import ConfigError
 from thrombojax.graph.frame import FRAMES
 from thrombojax.train.checks import check_train_values
 
-__all__ = ["TrainConfig", "RunConfig", "SELECT_BY", "parse_angle", "load_config_file"]
+__all__ = ["TrainConfig", "RunConfig", "SELECT_BY", "CHECKPOINTS", "parse_angle",
+           "load_config_file"]
 
 SELECT_BY = ("mse", "rollout", "last")
 """What picks the ``best`` checkpoint: the one-step validation MSE, the validation rollout
 (:mod:`thrombojax.train.validation`), or the last epoch."""
+
+CHECKPOINTS = ("best", "last")
+"""The checkpoints a run keeps (``run_dir/checkpoints/<name>``)."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -252,8 +256,9 @@ class TrainConfig:
                               f"{self.select_by!r}")
         if not isinstance(self.init_from, str):
             raise ConfigError(f"init_from must be a run directory, got {self.init_from!r}")
-        if self.init_which not in ("best", "last"):
-            raise ConfigError(f"init_which must be 'best' or 'last', got {self.init_which!r}")
+        if self.init_which not in CHECKPOINTS:
+            raise ConfigError(f"init_which must be one of {list(CHECKPOINTS)}, got "
+                              f"{self.init_which!r}")
         if self.frame not in FRAMES:
             raise ConfigError(f"frame must be one of {list(FRAMES)}, got {self.frame!r}")
 

@@ -35,7 +35,7 @@ from thrombojax.errors import ConfigError
 from thrombojax.io.outputs import atomic_write_text
 from thrombojax.models.registry import Surrogate, config_from_dict, create_model
 from thrombojax.simulator.step import LearnedStep, make_step
-from thrombojax.train.config import RunConfig
+from thrombojax.train.config import CHECKPOINTS, RunConfig
 from thrombojax.types import NodeType, TargetStats
 
 __all__ = [
@@ -230,8 +230,8 @@ def load_trained(run_dir: str | pathlib.Path, *, which: str = "best") -> Trained
     Returns:
         The :class:`TrainedModel`.
     """
-    if which not in ("best", "last"):
-        raise ConfigError(f"which must be 'best' or 'last', got {which!r}")
+    if which not in CHECKPOINTS:
+        raise ConfigError(f"which must be one of {list(CHECKPOINTS)}, got {which!r}")
     run_dir = pathlib.Path(run_dir)
     config = read_run_config(run_dir)
     ckpt = run_dir / "checkpoints" / which
