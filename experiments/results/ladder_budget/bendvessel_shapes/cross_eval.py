@@ -2,8 +2,11 @@
 (``table.md``, ``ladder.json``, ``error_per_step.png``) into OUT; each row's result is kept in
 ``OUT/<label>.json`` and reused when the command is run again. Run from the repository root::
 
-    python experiments/results/ladder_budget/bendvessel_shapes/cross_eval.py OUT DATA \\
-        NAME1,NAME2,... "TITLE" LABEL=RUN[+RUN...][:guards] ...
+    python experiments/results/ladder_budget/bendvessel_shapes/cross_eval.py [--nodes N] OUT \\
+        DATA NAME1,NAME2,... "TITLE" LABEL=RUN[+RUN...][:guards] ...
+
+``--nodes N`` rolls out on the fixed subset of N nodes per simulation that the ladder's
+``--nodes`` uses (ClotEntry: 2,048); without it, all nodes.
 
 Every run is evaluated at its last checkpoint; ``+`` joins runs into an ensemble (score a member
 alone with a row of its own); ``:guards`` turns the physics guards on, and
@@ -27,11 +30,13 @@ from thrombojax.io.outputs import atomic_write_text  # noqa: E402
 
 
 def main() -> None:
-    out, data, names, title = pathlib.Path(sys.argv[1]), sys.argv[2], sys.argv[3].split(","), \
-        sys.argv[4]
+    argv, nodes = sys.argv[1:], None
+    if argv and argv[0] == "--nodes":
+        nodes, argv = int(argv[1]), argv[2:]
+    out, data, names, title = pathlib.Path(argv[0]), argv[1], argv[2].split(","), argv[3]
     out.mkdir(parents=True, exist_ok=True)
     results = {}
-    for spec in sys.argv[5:]:
+    for spec in argv[4:]:
         label, _, rest = spec.partition("=")
         runs, _, flag = rest.partition(":")
         flag, *options = flag.split(",") if flag else [""]
@@ -42,11 +47,11 @@ def main() -> None:
             continue
         print("evaluating", label, flush=True)
         results[label] = evaluate_runs([pathlib.Path(r) for r in runs.split("+")], data,
-                                       flag == "guards", None, names, "last",
+                                       flag == "guards", nodes, names, "last",
                                        guard_options=guard_options)
         results[label]["measured"] = environment()
         atomic_write_text(path, json.dumps(results[label], indent=1))
-    print(write_reports(out, results, title=title, test_sims=names, nodes=None))
+    print(write_reports(out, results, title=title, test_sims=names, nodes=nodes))
 
 
 if __name__ == "__main__":
