@@ -44,6 +44,10 @@ def main() -> None:
         path = out / f"{label}.json"
         if path.is_file():
             results[label] = json.loads(path.read_text())
+            if nodes is not None and results[label].get("n_nodes") != nodes:
+                sys.exit(f"{path}: row {label!r} was measured on {results[label].get('n_nodes')} "
+                         f"nodes per simulation, not --nodes {nodes}; move it away to measure "
+                         "it again")
             continue
         print("evaluating", label, flush=True)
         results[label] = evaluate_runs([pathlib.Path(r) for r in runs.split("+")], data,
