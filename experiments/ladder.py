@@ -214,6 +214,23 @@ def member_rung(rung: Rung, seed: int) -> Rung:
                                train={**rung.train, "seed": seed})
 
 
+def train_seed(rung_name: str, out: pathlib.Path, seed: int, data: str, epochs: int,
+               split: dict, n_nodes: int | None = None) -> pathlib.Path:
+    """Train seed ``seed`` of rung ``rung_name`` for ``epochs`` epochs into the folder the
+    ladder evaluates it from (``out/<rung>/run`` for seed 0, the member folder otherwise),
+    without evaluating it, so several seeds can train side by side before one ladder command
+    evaluates them."""
+    rung = next(r for r in RUNGS if r.name == rung_name)
+    if seed:  # the ladder's own member recipe and folder
+        folder = _member_folder(rung, out, seed)
+        rung = member_rung(rung, seed)
+    else:
+        folder = out / rung.name
+    folder.mkdir(parents=True, exist_ok=True)
+    print("training", folder, epochs, "epochs", flush=True)
+    return _train_rung(rung, data, folder, split, 0.0, epochs, epochs, n_nodes, COMMON)
+
+
 def _member_runs(rung: Rung, out: pathlib.Path, data: str, split: dict,
                  n_nodes: int | None, common: dict = COMMON) -> list[pathlib.Path]:
     """The runs a rung evaluates: its own (or ``reuse``'s), plus for an ensemble members

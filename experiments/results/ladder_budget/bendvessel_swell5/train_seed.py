@@ -20,18 +20,10 @@ import ladder  # noqa: E402
 def main() -> None:
     rung_name, out, seed = sys.argv[1], pathlib.Path(sys.argv[2]), int(sys.argv[3])
     data, epochs = sys.argv[4], int(sys.argv[5])
-    rung = next(r for r in ladder.RUNGS if r.name == rung_name)
-    if seed:  # the ladder's own member recipe and folder
-        folder = ladder._member_folder(rung, out, seed)
-        rung = ladder.member_rung(rung, seed)
-    else:
-        folder = out / rung.name
-    folder.mkdir(parents=True, exist_ok=True)
     prefix = sys.argv[6] if len(sys.argv) > 6 else "bendvessel"
     split = {k: [n.replace("bendvessel", prefix, 1) for n in names]  # the ladder's defaults
              for k, names in (("test_sims", ladder.DEFAULT_TEST), ("val_sims", ladder.DEFAULT_VAL))}
-    print("training", folder, epochs, "epochs", flush=True)
-    ladder._train_rung(rung, data, folder, split, 0.0, epochs, epochs, None, ladder.COMMON)
+    ladder.train_seed(rung_name, out, seed, data, epochs, split)
     print("done", flush=True)
 
 

@@ -26,17 +26,8 @@ def main() -> None:
     p.add_argument("--val", required=True, help="validation simulations, comma-separated")
     p.add_argument("--nodes", type=int, default=None, help="nodes per sample (ladder's --nodes)")
     a = p.parse_args()
-    rung = next(r for r in ladder.RUNGS if r.name == a.rung)
-    if a.seed:  # the ladder's own member recipe and folder
-        folder = ladder._member_folder(rung, a.out, a.seed)
-        rung = ladder.member_rung(rung, a.seed)
-    else:
-        folder = a.out / rung.name
-    folder.mkdir(parents=True, exist_ok=True)
     split = {"test_sims": a.test.split(","), "val_sims": a.val.split(",")}
-    print("training", folder, a.epochs, "epochs", flush=True)
-    ladder._train_rung(rung, a.data, folder, split, 0.0, a.epochs, a.epochs, a.nodes,
-                       ladder.COMMON)
+    ladder.train_seed(a.rung, a.out, a.seed, a.data, a.epochs, split, a.nodes)
     print("done", flush=True)
 
 
