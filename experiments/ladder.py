@@ -216,10 +216,11 @@ def member_rung(rung: Rung, seed: int) -> Rung:
 
 def train_seed(rung_name: str, out: pathlib.Path, seed: int, data: str, epochs: int,
                split: dict, n_nodes: int | None = None) -> pathlib.Path:
-    """Train seed ``seed`` of rung ``rung_name`` for ``epochs`` epochs into the folder the
-    ladder evaluates it from (``out/<rung>/run`` for seed 0, the member folder otherwise),
-    without evaluating it, so several seeds can train side by side before one ladder command
-    evaluates them."""
+    """Train seed ``seed`` of rung ``rung_name`` for ``epochs`` epochs where the ladder
+    evaluates it from, without evaluating it, so several seeds can train side by side before
+    one ladder command evaluates them. Returns the run folder: ``out/<rung>/run`` for seed 0,
+    ``<member folder>/run`` otherwise (``out/<rung or the rung it reuses>/member_<seed>/run``,
+    ``_member_folder``)."""
     rung = next(r for r in RUNGS if r.name == rung_name)
     if seed:  # the ladder's own member recipe and folder
         folder = _member_folder(rung, out, seed)

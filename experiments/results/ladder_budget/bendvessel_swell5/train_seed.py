@@ -23,8 +23,7 @@ def main() -> None:
     prefix = sys.argv[6] if len(sys.argv) > 6 else "bendvessel"
     split = {k: [n.replace("bendvessel", prefix, 1) for n in names]  # the ladder's defaults
              for k, names in (("test_sims", ladder.DEFAULT_TEST), ("val_sims", ladder.DEFAULT_VAL))}
-    ladder.train_seed(rung_name, out, seed, data, epochs, split)
-    print("done", flush=True)
+    print("done:", ladder.train_seed(rung_name, out, seed, data, epochs, split), flush=True)
 
 
 if __name__ == "__main__":

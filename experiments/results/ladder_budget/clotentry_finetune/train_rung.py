@@ -27,8 +27,8 @@ def main() -> None:
     p.add_argument("--nodes", type=int, default=None, help="nodes per sample (ladder's --nodes)")
     a = p.parse_args()
     split = {"test_sims": a.test.split(","), "val_sims": a.val.split(",")}
-    ladder.train_seed(a.rung, a.out, a.seed, a.data, a.epochs, split, a.nodes)
-    print("done", flush=True)
+    print("done:", ladder.train_seed(a.rung, a.out, a.seed, a.data, a.epochs, split, a.nodes),
+          flush=True)
 
 
 if __name__ == "__main__":
