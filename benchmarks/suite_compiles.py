@@ -1,0 +1,177 @@
+"""Where the test suite's time goes: every XLA compilation, timed and attributed.
+
+The suite's time is mostly compiling small programs (``tests/conftest.py``). This module is both
+a pytest plugin that records, in each pytest process (each xdist worker), every backend
+compilation that misses the persistent cache (its program name, the test that ran it, the
+wall time of the compile), and a script that merges those records into tables: totals, the
+programs that cost most, the test files that cost most, and the wall time of each file beside
+its compile time when the run printed ``--durations=0``.
+
+Compilations in subprocesses (the kill trials, the demo, the notebook) are not recorded: they
+run other interpreters. The wrapped function is JAX's private
+``jax._src.compiler.backend_compile_and_load``; under a JAX without it the plugin refuses to
+start rather than record nothing.
+
+Usage (any pytest command line; the records go to ``$THROMBOJAX_COMPILE_RECORDS``)::
+
+    THROMBOJAX_COMPILE_RECORDS=/tmp/rec PYTHONPATH=benchmarks PYTEST_ADDOPTS="-p suite_compiles"\
+        make test 2>&1 | tee suite.log
+    python benchmarks/suite_compiles.py /tmp/rec [--log suite.log] [--top 25] [--out FILE]
+"""
+
+from __future__ import annotations
+
+import argparse
+import collections
+import json
+import os
+import pathlib
+import re
+import sys
+import time
+
+ENV = "THROMBOJAX_COMPILE_RECORDS"
+_BY_PROGRAM: dict[str, list] = collections.defaultdict(lambda: [0, 0.0])
+_BY_TEST: dict[str, list] = collections.defaultdict(lambda: [0, 0.0])
+_CURRENT = ["(outside tests)"]
+
+
+def _program_name(module) -> str:
+    try:
+        return str(module.operation.attributes["sym_name"]).strip('"')
+    except (AttributeError, KeyError):
+        return "(unnamed)"
+
+
+def install() -> None:
+    """Wrap JAX's backend compile so that every call is timed (idempotent)."""
+    try:
+        from jax._src import compiler
+        original = compiler.backend_compile_and_load
+    except (ImportError, AttributeError) as err:
+        import jax
+        raise RuntimeError(f"suite_compiles: jax {jax.__version__} has no "
+                           "jax._src.compiler.backend_compile_and_load to time") from err
+    if getattr(original, "_suite_compiles", False):
+        return
+
+    def timed(backend, module, *args, **kwargs):
+        start = time.perf_counter()
+        try:
+            return original(backend, module, *args, **kwargs)
+        finally:
+            seconds = time.perf_counter() - start
+            for table, key in ((_BY_PROGRAM, _program_name(module)), (_BY_TEST, _CURRENT[0])):
+                table[key][0] += 1
+                table[key][1] += seconds
+
+    timed._suite_compiles = True
+    compiler.backend_compile_and_load = timed
+
+
+# -- pytest plugin hooks ----------------------------------------------------------------------
+
+def pytest_configure(config) -> None:  # noqa: ARG001
+    if not os.environ.get(ENV):
+        raise RuntimeError(f"suite_compiles: set {ENV} to the folder for the records")
+    install()
+
+
+def pytest_runtest_setup(item) -> None:
+    _CURRENT[0] = item.nodeid
+
+
+def pytest_unconfigure(config) -> None:  # noqa: ARG001
+    folder = pathlib.Path(os.environ[ENV])
+    folder.mkdir(parents=True, exist_ok=True)
+    record = {"pid": os.getpid(), "by_program": dict(_BY_PROGRAM), "by_test": dict(_BY_TEST)}
+    tmp = folder / f".compiles.{os.getpid()}.json.tmp"
+    tmp.write_text(json.dumps(record))
+    tmp.replace(folder / f"compiles.{os.getpid()}.json")
+
+
+# -- the report -------------------------------------------------------------------------------
+
+def merge(folder: pathlib.Path) -> tuple[dict, dict, int]:
+    """Sum the records of every process under ``folder``: (by program, by test, processes)."""
+    files = sorted(folder.glob("compiles.*.json"))
+    if not files:
+        raise SystemExit(f"suite_compiles: no compiles.*.json under {folder}")
+    programs: dict = collections.defaultdict(lambda: [0, 0.0])
+    tests: dict = collections.defaultdict(lambda: [0, 0.0])
+    for path in files:
+        record = json.loads(path.read_text())
+        for table, key in ((programs, "by_program"), (tests, "by_test")):
+            for name, (count, seconds) in record[key].items():
+                table[name][0] += count
+                table[name][1] += seconds
+    return dict(programs), dict(tests), len(files)
+
+
+def durations(log: pathlib.Path) -> dict[str, float]:
+    """Per-file wall seconds (setup + call + teardown) from pytest's ``--durations`` lines."""
+    out: dict[str, float] = collections.defaultdict(float)
+    pattern = re.compile(r"^\s*([\d.]+)s (?:call|setup|teardown)\s+(\S+?)::")
+    for line in log.read_text(errors="replace").splitlines():
+        if m := pattern.match(line):
+            out[m.group(2)] += float(m.group(1))
+    return dict(out)
+
+
+def report(folder: pathlib.Path, log: pathlib.Path | None, top: int) -> list[str]:
+    """The report's markdown lines."""
+    programs, tests, n_proc = merge(folder)
+    total = sum(s for _, s in programs.values())
+    count = sum(c for c, _ in programs.values())
+    small = sum(s for c, s in programs.values() if s / c < 0.15)
+    lines = [f"{count} compilations in {n_proc} pytest processes: {total:.0f} s "
+             f"({small:.0f} s in programs of under 0.15 s on average: mostly eager operations)",
+             "", "| program | compiles | seconds | s / compile |", "|---|---|---|---|"]
+    for name, (c, s) in sorted(programs.items(), key=lambda kv: -kv[1][1])[:top]:
+        lines.append(f"| `{name}` | {c} | {s:.1f} | {s / c:.2f} |")
+    files: dict = collections.defaultdict(lambda: [0, 0.0])
+    for nodeid, (c, s) in tests.items():
+        files[nodeid.split("::")[0]][0] += c
+        files[nodeid.split("::")[0]][1] += s
+    walls = durations(log) if log else {}
+    if walls:
+        lines += ["", f"Wall time of the files (sum of their tests' durations): "
+                  f"{sum(walls.values()):.0f} worker-seconds."]
+    lines += ["", "| test file | compiles | compile s | wall s |", "|---|---|---|---|"]
+    order = sorted(set(files) | set(walls),
+                   key=lambda f: -max(files.get(f, [0, 0.0])[1], walls.get(f, 0.0)))
+    for name in order[:top]:
+        c, s = files.get(name, [0, 0.0])
+        wall = f"{walls[name]:.0f}" if name in walls else "-"
+        lines.append(f"| {name} | {c} | {s:.0f} | {wall} |")
+    return lines
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("records", type=pathlib.Path, help=f"the folder of ${ENV}")
+    parser.add_argument("--log", type=pathlib.Path,
+                        help="the run's output, with pytest's --durations=0 lines")
+    parser.add_argument("--top", type=int, default=25, help="rows per table")
+    parser.add_argument("--out", type=pathlib.Path, help="also write the report here")
+    args = parser.parse_args(argv)
+    sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))
+    from thrombojax.eval.tables import environment
+
+    env = environment()
+    lines = ["# benchmarks/suite_compiles.py: XLA compilations of the test suite", "", "```",
+             *[f"# {k}: {v}" for k, v in env.items()], "```", "",
+             *report(args.records, args.log, args.top)]
+    text = "\n".join(lines) + "\n"
+    print(text, end="")
+    if args.out:
+        if args.out.exists():
+            raise SystemExit(f"suite_compiles: {args.out} exists; not replacing it")
+        tmp = args.out.with_name(f".{args.out.name}.tmp")
+        tmp.write_text(text)
+        tmp.replace(args.out)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
