@@ -14,9 +14,13 @@ start rather than record nothing.
 
 Usage (any pytest command line; the records go to ``$THROMBOJAX_COMPILE_RECORDS``)::
 
-    THROMBOJAX_COMPILE_RECORDS=/tmp/rec PYTHONPATH=benchmarks PYTEST_ADDOPTS="-p suite_compiles"\
-        make test 2>&1 | tee suite.log
+    THROMBOJAX_COMPILE_RECORDS=/tmp/rec PYTHONPATH=benchmarks .venv/bin/python -m pytest -q \
+        -n 2 --dist loadfile --no-loadscope-reorder --durations=0 -p suite_compiles \
+        2>&1 | tee suite.log
     python benchmarks/suite_compiles.py /tmp/rec [--log suite.log] [--top 25] [--out FILE]
+
+or ``PYTEST_ADDOPTS="-p suite_compiles" make test`` (its log holds the 30 slowest tests'
+durations only).
 """
 
 from __future__ import annotations
@@ -118,6 +122,17 @@ def durations(log: pathlib.Path) -> dict[str, float]:
     return dict(out)
 
 
+def _summary(log: pathlib.Path) -> str | None:
+    """The log's last pytest summary (``866 passed, 1 warning in 2292.93s``) and, when the
+    run was under ``time``, its real / user / sys lines."""
+    text = log.read_text(errors="replace")
+    found = re.findall(r"^=* ?(\d+ passed.* in [\d.]+s[^=\n]*)", text, re.MULTILINE)
+    times = re.findall(r"^(real|user|sys)\s+(\S+)$", text, re.MULTILINE)
+    if not found:
+        return None
+    return found[-1].strip() + "".join(f"; {k} {v}" for k, v in times[-3:])
+
+
 def report(folder: pathlib.Path, log: pathlib.Path | None, top: int) -> list[str]:
     """The report's markdown lines."""
     programs, tests, n_proc = merge(folder)
@@ -134,9 +149,13 @@ def report(folder: pathlib.Path, log: pathlib.Path | None, top: int) -> list[str
         files[nodeid.split("::")[0]][0] += c
         files[nodeid.split("::")[0]][1] += s
     walls = durations(log) if log else {}
+    summary = _summary(log) if log else None
+    if summary:
+        lines += ["", f"The run: {summary}"]
     if walls:
-        lines += ["", f"Wall time of the files (sum of their tests' durations): "
-                  f"{sum(walls.values()):.0f} worker-seconds."]
+        lines += ["", f"Wall time in the log's duration lines: {sum(walls.values()):.0f} "
+                  "worker-seconds (every test's only when the run printed --durations=0; a "
+                  "file without lines: -)."]
     lines += ["", "| test file | compiles | compile s | wall s |", "|---|---|---|---|"]
     order = sorted(set(files) | set(walls),
                    key=lambda f: -max(files.get(f, [0, 0.0])[1], walls.get(f, 0.0)))
@@ -152,6 +171,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("records", type=pathlib.Path, help=f"the folder of ${ENV}")
     parser.add_argument("--log", type=pathlib.Path,
                         help="the run's output, with pytest's --durations=0 lines")
+    parser.add_argument("--suite-command", default="",
+                        help="the command of the recorded run, written into the report")
     parser.add_argument("--top", type=int, default=25, help="rows per table")
     parser.add_argument("--out", type=pathlib.Path, help="also write the report here")
     args = parser.parse_args(argv)
@@ -160,7 +181,9 @@ def main(argv: list[str] | None = None) -> int:
 
     env = environment()
     lines = ["# benchmarks/suite_compiles.py: XLA compilations of the test suite", "", "```",
-             *[f"# {k}: {v}" for k, v in env.items()], "```", "",
+             *[f"# {k}: {v}" for k, v in env.items()],
+             *([f"# recorded run: {args.suite_command}"] if args.suite_command else []),
+             "```", "",
              *report(args.records, args.log, args.top)]
     text = "\n".join(lines) + "\n"
     print(text, end="")

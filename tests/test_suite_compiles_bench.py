@@ -49,11 +49,12 @@ def test_records_every_compile_by_program_and_test_and_reports_them(tmp_path):
     log = tmp_path / "run.log"
     log.write_text(proc.stdout)
     out = tmp_path / "report.md"
-    argv = [str(records), "--log", str(log), "--out", str(out)]
+    argv = [str(records), "--log", str(log), "--out", str(out), "--suite-command", "pytest X"]
     assert suite_compiles.main(argv) == 0
     text = out.read_text()
     assert "| `jit_twice_plus_one` | 1 |" in text and "| test_tiny.py |" in text
-    assert "worker-seconds" in text and "# jax:" in text
+    assert "worker-seconds" in text and "# jax:" in text and "# recorded run: pytest X" in text
+    assert "The run: 2 passed" in text
     with pytest.raises(SystemExit):
         suite_compiles.main(argv)  # the report exists: refused
     assert out.read_text() == text
