@@ -131,6 +131,10 @@ def remat_call(module: nn.Module, *args: jax.Array, **static: Any) -> jax.Array:
         *args: its array arguments (integer, boolean and key arrays get no gradient).
         **static: non-array keyword arguments of the call (``train=True``), passed unchanged.
     """
+    parent = module.parent
+    if isinstance(parent, nn.Module) and parent.is_initializing():
+        # the same parameters (tests/test_remat.py); no lifted transform for the init to cross
+        return module(*args, **static)
     definition = module.clone(parent=None)
 
     def pure(params, *a):

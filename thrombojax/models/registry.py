@@ -49,6 +49,7 @@ from thrombojax.models.configs import (
     MeshGraphNetConfig,
     TransolverConfig,
 )
+from thrombojax.models.grouped_init import grouped_init
 from thrombojax.types import ModelInput, TargetStats
 
 __all__ = [
@@ -132,7 +133,7 @@ class FlaxSurrogate:
 def _init_flax(model: FlaxSurrogate, rng: jax.Array, inputs: ModelInput, graph: Any) -> dict:
     params_rng, dropout_rng = jax.random.split(rng)
     rngs = {"params": params_rng, "dropout": dropout_rng}
-    return dict(model.module.init(rngs, inputs, graph, train=False))
+    return grouped_init(model.module, rngs, inputs, graph, train=False)
 
 
 @struct.dataclass
