@@ -89,9 +89,9 @@ def pytest_unconfigure(config) -> None:  # noqa: ARG001
     folder = pathlib.Path(os.environ[ENV])
     folder.mkdir(parents=True, exist_ok=True)
     record = {"pid": os.getpid(), "by_program": dict(_BY_PROGRAM), "by_test": dict(_BY_TEST)}
-    tmp = folder / f".compiles.{os.getpid()}.json.tmp"
-    tmp.write_text(json.dumps(record))
-    tmp.replace(folder / f"compiles.{os.getpid()}.json")
+    from thrombojax.io.outputs import atomic_write_text
+
+    atomic_write_text(folder / f"compiles.{os.getpid()}.json", json.dumps(record))
 
 
 # -- the report -------------------------------------------------------------------------------
@@ -178,6 +178,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))
     from thrombojax.eval.tables import environment
+    from thrombojax.io.outputs import atomic_write_text
 
     env = environment()
     lines = ["# benchmarks/suite_compiles.py: XLA compilations of the test suite", "", "```",
@@ -190,9 +191,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.out:
         if args.out.exists():
             raise SystemExit(f"suite_compiles: {args.out} exists; not replacing it")
-        tmp = args.out.with_name(f".{args.out.name}.tmp")
-        tmp.write_text(text)
-        tmp.replace(args.out)
+        atomic_write_text(args.out, text)
     return 0
 
 

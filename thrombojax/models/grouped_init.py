@@ -69,11 +69,13 @@ def _deferred(pending: list, outer: Any) -> Iterator[None]:
             return original(self, name, init_fn, *init_args, unbox=unbox, **init_kwargs)
         self.reserve(name, "params")
         lazy = _lazy_key(self)
-        # make_rng's key (the counter is advanced already); under jit only traced for shapes
-        rng = self.make_rng("params") if lazy is None else jax.random.fold_in(*lazy)
-        shape = jax.eval_shape(lambda: init_fn(rng, *init_args, **init_kwargs))
+        # make_rng's key (the counter is advanced already); a deferred draw only needs its shape
+        rng = self.make_rng("params") if lazy is None else None
+        shape = jax.eval_shape(lambda: init_fn(jax.random.fold_in(*lazy) if rng is None else rng,
+                                               *init_args, **init_kwargs))
         if lazy is None or not isinstance(shape, jax.ShapeDtypeStruct) \
                 or _trace_of(lazy[0]) is not outer:
+            rng = jax.random.fold_in(*lazy) if rng is None else rng
             value = init_fn(rng, *init_args, **init_kwargs)
             self.put_variable("params", name, value)
             return meta.unbox(value) if unbox else value
