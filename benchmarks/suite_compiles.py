@@ -4,8 +4,10 @@ The suite's time is mostly compiling small programs (``tests/conftest.py``). Thi
 a pytest plugin that records, in each pytest process (each xdist worker), every backend
 compilation that misses the persistent cache (its program name, the test that ran it, the
 wall time of the compile), and a script that merges those records into tables: totals, the
-programs that cost most, the test files that cost most, and the wall time of each file beside
-its compile time when the run printed ``--durations=0``.
+programs that cost most, the test files that cost most, the wall time of each file beside
+its compile time when the run printed ``--durations=0``, and the lines that asked for the
+small compilations (under 0.15 s each: mostly JAX running a function op by op, each operation
+compiled on its own, where one ``jax.jit`` would compile the whole once).
 
 Compilations in subprocesses (the kill trials, the demo, the notebook) are not recorded: they
 run other interpreters. The wrapped function is JAX's private
@@ -33,11 +35,30 @@ import pathlib
 import re
 import sys
 import time
+import traceback
 
 ENV = "THROMBOJAX_COMPILE_RECORDS"
 _BY_PROGRAM: dict[str, list] = collections.defaultdict(lambda: [0, 0.0])
 _BY_TEST: dict[str, list] = collections.defaultdict(lambda: [0, 0.0])
+_BY_SITE: dict[str, list] = collections.defaultdict(lambda: [0, 0.0])
 _CURRENT = ["(outside tests)"]
+_ROOT = [""]
+SMALL_S = 0.15  # a compile under this is counted by its call site (mostly eager operations)
+
+
+def _site() -> str:
+    """The line of the test file that asked for a compile and the innermost line under the
+    run's root (the package, a test helper) below it, ``test_x.py:12 -> pkg/mod.py:34``."""
+    ours = [f for f in traceback.extract_stack()[:-2]
+            if f.filename.startswith(_ROOT[0]) and "site-packages" not in f.filename]
+    if not ours:
+        return "(outside the run's files)"
+
+    def where(frame) -> str:
+        return f"{os.path.relpath(frame.filename, _ROOT[0])}:{frame.lineno}"
+
+    test = next((f for f in ours if os.path.basename(f.filename).startswith("test_")), ours[0])
+    return where(test) if test is ours[-1] else f"{where(test)} -> {where(ours[-1])}"
 
 
 def _program_name(module) -> str:
@@ -65,7 +86,10 @@ def install() -> None:
             return original(backend, module, *args, **kwargs)
         finally:
             seconds = time.perf_counter() - start
-            for table, key in ((_BY_PROGRAM, _program_name(module)), (_BY_TEST, _CURRENT[0])):
+            keys = [(_BY_PROGRAM, _program_name(module)), (_BY_TEST, _CURRENT[0])]
+            if seconds < SMALL_S:
+                keys.append((_BY_SITE, _site()))
+            for table, key in keys:
                 table[key][0] += 1
                 table[key][1] += seconds
 
@@ -75,9 +99,10 @@ def install() -> None:
 
 # -- pytest plugin hooks ----------------------------------------------------------------------
 
-def pytest_configure(config) -> None:  # noqa: ARG001
+def pytest_configure(config) -> None:
     if not os.environ.get(ENV):
         raise RuntimeError(f"suite_compiles: set {ENV} to the folder for the records")
+    _ROOT[0] = str(config.rootpath) + os.sep
     install()
 
 
@@ -88,7 +113,8 @@ def pytest_runtest_setup(item) -> None:
 def pytest_unconfigure(config) -> None:  # noqa: ARG001
     folder = pathlib.Path(os.environ[ENV])
     folder.mkdir(parents=True, exist_ok=True)
-    record = {"pid": os.getpid(), "by_program": dict(_BY_PROGRAM), "by_test": dict(_BY_TEST)}
+    record = {"pid": os.getpid(), "by_program": dict(_BY_PROGRAM), "by_test": dict(_BY_TEST),
+              "by_site": dict(_BY_SITE)}
     from thrombojax.io.outputs import atomic_write_text
 
     atomic_write_text(folder / f"compiles.{os.getpid()}.json", json.dumps(record))
@@ -96,20 +122,22 @@ def pytest_unconfigure(config) -> None:  # noqa: ARG001
 
 # -- the report -------------------------------------------------------------------------------
 
-def merge(folder: pathlib.Path) -> tuple[dict, dict, int]:
-    """Sum the records of every process under ``folder``: (by program, by test, processes)."""
+def merge(folder: pathlib.Path) -> tuple[dict, dict, int, dict]:
+    """Sum the records of every process under ``folder``: (by program, by test, processes,
+    small compilations by call site)."""
     files = sorted(folder.glob("compiles.*.json"))
     if not files:
         raise SystemExit(f"suite_compiles: no compiles.*.json under {folder}")
     programs: dict = collections.defaultdict(lambda: [0, 0.0])
     tests: dict = collections.defaultdict(lambda: [0, 0.0])
+    sites: dict = collections.defaultdict(lambda: [0, 0.0])
     for path in files:
         record = json.loads(path.read_text())
-        for table, key in ((programs, "by_program"), (tests, "by_test")):
-            for name, (count, seconds) in record[key].items():
+        for table, key in ((programs, "by_program"), (tests, "by_test"), (sites, "by_site")):
+            for name, (count, seconds) in record.get(key, {}).items():
                 table[name][0] += count
                 table[name][1] += seconds
-    return dict(programs), dict(tests), len(files)
+    return dict(programs), dict(tests), len(files), dict(sites)
 
 
 def durations(log: pathlib.Path) -> dict[str, float]:
@@ -135,7 +163,7 @@ def _summary(log: pathlib.Path) -> str | None:
 
 def report(folder: pathlib.Path, log: pathlib.Path | None, top: int) -> list[str]:
     """The report's markdown lines."""
-    programs, tests, n_proc = merge(folder)
+    programs, tests, n_proc, sites = merge(folder)
     total = sum(s for _, s in programs.values())
     count = sum(c for c, _ in programs.values())
     small = sum(s for c, s in programs.values() if s / c < 0.15)
@@ -163,6 +191,12 @@ def report(folder: pathlib.Path, log: pathlib.Path | None, top: int) -> list[str
         c, s = files.get(name, [0, 0.0])
         wall = f"{walls[name]:.0f}" if name in walls else "-"
         lines.append(f"| {name} | {c} | {s:.0f} | {wall} |")
+    if sites:
+        lines += ["", f"Compilations of under {SMALL_S} s each, by the line that asked for them "
+                  "(the test's line -> the innermost line of the run's files below it):", "",
+                  "| call site | compiles | seconds |", "|---|---|---|"]
+        for name, (c, s) in sorted(sites.items(), key=lambda kv: -kv[1][1])[:top]:
+            lines.append(f"| {name} | {c} | {s:.1f} |")
     return lines
 
 

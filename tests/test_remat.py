@@ -65,7 +65,7 @@ def test_remat_equals_plain(name, train):
     np.testing.assert_allclose(loss_f, loss_p, rtol=TOL)
     assert_trees_close(grads_f, grads_p)
     leaves = jax.tree_util.tree_leaves_with_path(grads_p)  # a clamped temperature has none
-    assert all(float(jnp.max(jnp.abs(g))) > 0 for path, g in leaves
+    assert all(float(np.max(np.abs(g))) > 0 for path, g in leaves
                if "temperature" not in jax.tree_util.keystr(path))
 
 

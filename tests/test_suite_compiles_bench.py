@@ -22,6 +22,7 @@ def test_one():
     def twice_plus_one(x):
         return 2 * x + 1
     assert float(twice_plus_one(jnp.ones(())) ) == 3.0
+    assert float(jnp.sin(jnp.zeros(7)).sum()) == 0.0  # op by op: a small compile per op
 
 def test_two():
     pass
@@ -43,8 +44,9 @@ def test_records_every_compile_by_program_and_test_and_reports_them(tmp_path):
     records = tmp_path / "rec"
     proc = _pytest(tmp_path, records, {suite_compiles.ENV: str(records)})
     assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
-    programs, tests, n_proc = suite_compiles.merge(records)
+    programs, tests, n_proc, sites = suite_compiles.merge(records)
     assert n_proc == 1 and programs["jit_twice_plus_one"][0] == 1
+    assert sites["test_tiny.py:9"][0] >= 1  # the eager line, attributed to itself
     assert tests["test_tiny.py::test_one"][0] >= 1 and "test_tiny.py::test_two" not in tests
     log = tmp_path / "run.log"
     log.write_text(proc.stdout)
@@ -55,6 +57,7 @@ def test_records_every_compile_by_program_and_test_and_reports_them(tmp_path):
     assert "| `jit_twice_plus_one` | 1 |" in text and "| test_tiny.py |" in text
     assert "worker-seconds" in text and "# jax:" in text and "# recorded run: pytest X" in text
     assert "The run: 2 passed" in text
+    assert "| test_tiny.py:9 |" in text and "by the line that asked for them" in text
     with pytest.raises(SystemExit):
         suite_compiles.main(argv)  # the report exists: refused
     assert out.read_text() == text

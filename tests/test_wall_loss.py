@@ -109,15 +109,20 @@ def test_batch_loss_adds_the_weighted_term_in_both_batch_forms():
     batch = window_batch([_tube_window(seed)[:3] for seed in range(2)])
     params = init_state(model, make_optimizer(1e-3), jax.random.PRNGKey(0), batch).params
     step = make_step(model)
-    terms = jax.vmap(lambda f, t, m: window_loss_terms(step, params, _STATS, f, t, m, train=False,
-                                                       rng=None, wall_term=True))(
+    # jitted, as the trainer runs them (op by op, each call compiles ~100 small programs)
+    terms = jax.jit(jax.vmap(lambda f, t, m: window_loss_terms(
+        step, params, _STATS, f, t, m, train=False, rng=None, wall_term=True)))(
         jnp.asarray(batch.frames), jnp.asarray(batch.node_type), jnp.asarray(batch.mask))
     extra = float(terms["wall_sum"].sum() / terms["count"].sum())
     assert extra > 0  # an untrained model's step puts some wall nodes through it
 
+    @functools.partial(jax.jit, static_argnums=(1, 2))
+    def _loss(p, w, flat):
+        return batch_loss(model, p, _STATS, batch, None, train=False, flat_batch=flat,
+                          wall_loss_weight=w)[0]
+
     def loss(w, flat=False):
-        return float(batch_loss(model, params, _STATS, batch, None, train=False, flat_batch=flat,
-                                wall_loss_weight=w)[0])
+        return float(_loss(params, w, flat))
 
     np.testing.assert_allclose(loss(4.0), loss(0.0) + 4.0 * extra, rtol=1e-5)
     np.testing.assert_allclose(loss(4.0, flat=True), loss(4.0), rtol=1e-5)
@@ -145,11 +150,15 @@ def _excess_after_sgd(weight, seed, steps=4):
     state = dataclasses.replace(state, params=params)
     step = make_step(_MODEL)
 
-    def excess(p):
+    @jax.jit
+    def _excess(p):
         terms = jax.vmap(lambda f, t, m: window_loss_terms(step, p, _STATS, f, t, m, train=False,
                                                            rng=None, wall_term=True))(
             jnp.asarray(batch.frames), jnp.asarray(batch.node_type), jnp.asarray(batch.mask))
-        return float(terms["wall_sum"].sum() / terms["count"].sum())
+        return terms["wall_sum"].sum() / terms["count"].sum()
+
+    def excess(p):
+        return float(_excess(p))
 
     before = excess(state.params)
     for i in range(steps):

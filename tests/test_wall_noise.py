@@ -83,7 +83,8 @@ def _window(frames=4):
 def test_wall_noise_moves_half_the_near_wall_nodes_through_the_wall():
     frames, nt, mask, rho = _window()
     keys = jax.random.split(jax.random.key(0), 200)
-    noisy = np.asarray(jax.vmap(lambda k: add_wall_noise(k, frames, nt, mask, std=STD))(keys))
+    noisy = np.asarray(jax.jit(jax.vmap(lambda k: add_wall_noise(k, frames, nt, mask, std=STD)))(
+        keys))
     f = np.asarray(frames)
     move = noisy - f[None]  # [keys, W, N, 3]
     # the input frames (s_{t-1}, s_t: current = 1) move alike, the targets by half of it
@@ -151,8 +152,9 @@ def test_the_training_loss_uses_the_wall_noise():
     batch, step = _resting_batch(), _tiny_step()
     params = step.init(jax.random.key(0), batch.frames[0, 0], batch.frames[0, 1],
                        batch.node_type[0], batch.mask[0])
-    losses = [float(batch_loss(step, params, STATS, batch, jax.random.key(1), train=True,
-                               wall_noise=w)[0]) for w in (0.0, 0.0, STD)]
+    loss = jax.jit(lambda p, w: batch_loss(step, p, STATS, batch, jax.random.key(1), train=True,
+                                           wall_noise=w)[0], static_argnums=1)
+    losses = [float(loss(params, w)) for w in (0.0, 0.0, STD)]
     assert losses[0] == losses[1] != losses[2]
 
 
@@ -175,7 +177,8 @@ def _inward_after_training(wall_noise: float, features: str) -> float:
     x = np.asarray(frames[1]).copy()
     _, radial = _radial(x[out])
     x[out] += 0.1 * radial
-    pred = step(state.params, STATS, jnp.asarray(x), jnp.asarray(x), nt, mask).positions
+    pred = jax.jit(lambda p, x: step(p, STATS, x, x, nt, mask).positions)(state.params,
+                                                                          jnp.asarray(x))
     accel = np.asarray(pred)[out] - x[out]
     return float(-np.mean(np.sum(accel * radial, axis=1)))
 

@@ -122,11 +122,20 @@ class FlaxSurrogate:
 
     def apply(self, params: dict, inputs: ModelInput, graph: Any, *, train: bool = False,
               rng: jax.Array | None = None) -> jax.Array:
-        """Normalised acceleration ``[n_nodes, 3]``; ``rng`` is needed to train with dropout."""
+        """Normalised acceleration ``[n_nodes, 3]``; ``rng`` is needed to train with dropout.
+
+        Called outside a trace it runs as one compiled program (not op by op); inside ``jit``,
+        ``grad``, ``vmap`` or ``scan`` it is inlined into the caller's program."""
         if train and rng is None and getattr(self.config, "dropout", 0.0) > 0.0:
             raise ConfigError(f"model '{self.name}': apply(train=True) uses dropout and needs rng")
-        rngs = {} if rng is None else {"dropout": rng}
-        return self.module.apply(params, inputs, graph, train=train, rngs=rngs)
+        return _apply_flax(self, params, inputs, graph, train, rng)
+
+
+@functools.partial(jax.jit, static_argnums=(0, 4), inline=True)
+def _apply_flax(model: FlaxSurrogate, params: dict, inputs: ModelInput, graph: Any, train: bool,
+                rng: jax.Array | None) -> jax.Array:
+    rngs = {} if rng is None else {"dropout": rng}
+    return model.module.apply(params, inputs, graph, train=train, rngs=rngs)
 
 
 @functools.partial(jax.jit, static_argnums=0)

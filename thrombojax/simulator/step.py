@@ -20,7 +20,9 @@ The step, in scaled [-1, 1] coordinates::
     s_{t+1} = s_t + v_t + a_t  for real clot nodes;  s_t for vessel and padded nodes (rigid)
 
 :class:`LearnedStep` is a frozen, hashable dataclass, so it is a static argument of ``jax.jit``
-(one compilation per surrogate and shapes).
+(one compilation per surrogate and shapes). Called outside a trace, the step runs as one compiled
+program (op by op, every operation would compile on its own: ~100 small programs for the tiny
+MeshGraphNet); inside ``jit``, ``grad``, ``vmap`` or ``scan`` it is inlined into the caller's.
 
 Frames: ``make_step(model, frame="vessel")`` runs the model in the frame of the rigid vessel
 (:func:`thrombojax.graph.frame.vessel_frame`): positions and velocities enter in that frame's
@@ -349,6 +351,9 @@ class LearnedStep:
         Returns:
             The :class:`StepOutput`.
         """
+        return _call(self, params, stats, x_prev, x_cur, node_type, mask, train, rng, context)
+
+    def _apply(self, params, stats, x_prev, x_cur, node_type, mask, train, rng, context):
         frame = self.frame_of(x_cur, node_type, mask)
         axes = shared_axes(x_cur, node_type, mask, context)
         inputs = self._inputs(frame, stats, x_prev, x_cur, node_type, mask, context, axes)
@@ -366,6 +371,11 @@ class LearnedStep:
         """Initialise the surrogate's variables on one frame (compiled once per shape)."""
         return _init(self, rng, jnp.asarray(x_prev, jnp.float32), jnp.asarray(x_cur, jnp.float32),
                      jnp.asarray(node_type, jnp.int32), jnp.asarray(mask, bool))
+
+
+@functools.partial(jax.jit, static_argnums=(0, 7), inline=True)
+def _call(step: LearnedStep, *args) -> StepOutput:
+    return step._apply(*args)
 
 
 @functools.partial(jax.jit, static_argnums=0)
