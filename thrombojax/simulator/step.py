@@ -94,16 +94,8 @@ from thrombojax.simulator.kinematics import (
 )
 from thrombojax.types import ModelInput, TargetStats
 
-__all__ = [
-    "StepOutput",
-    "StepContext",
-    "LearnedStep",
-    "make_step",
-    "make_input",
-    "target_acceleration",
-    "integrate",
-    "past_accelerations",
-]
+__all__ = ["StepOutput", "StepContext", "LearnedStep", "make_step", "make_input",
+           "target_acceleration", "integrate", "past_accelerations"]
 
 
 @struct.dataclass
