@@ -166,9 +166,10 @@ def report(folder: pathlib.Path, log: pathlib.Path | None, top: int) -> list[str
     programs, tests, n_proc, sites = merge(folder)
     total = sum(s for _, s in programs.values())
     count = sum(c for c, _ in programs.values())
-    small = sum(s for c, s in programs.values() if s / c < 0.15)
+    small = sum(s for c, s in programs.values() if s / c < SMALL_S)
     lines = [f"{count} compilations in {n_proc} pytest processes: {total:.0f} s "
-             f"({small:.0f} s in programs of under 0.15 s on average: mostly eager operations)",
+             f"({small:.0f} s in programs of under {SMALL_S} s on average: mostly eager "
+             "operations)",
              "", "| program | compiles | seconds | s / compile |", "|---|---|---|---|"]
     for name, (c, s) in sorted(programs.items(), key=lambda kv: -kv[1][1])[:top]:
         lines.append(f"| `{name}` | {c} | {s:.1f} | {s / c:.2f} |")
