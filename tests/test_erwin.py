@@ -62,11 +62,11 @@ def test_jit_gradients_finite(setup):
         return jax.grad(lambda q: jnp.sum(model.apply(q, inputs, graph) ** 2))(p)
 
     g = grads(params)
-    leaves = jax.tree_util.tree_leaves(g)
-    assert all(bool(jnp.all(jnp.isfinite(leaf))) for leaf in leaves)
-    sigma = g["params"]["net"]["enc_0"]["pairs"]["rot"]["attn"]["sigma"]
-    assert float(jnp.abs(sigma).sum()) > 0.0  # the distance fall-off is trained
-    assert sum(float(jnp.abs(leaf).sum()) for leaf in leaves) > 0.0
+    leaves = [np.asarray(leaf) for leaf in jax.tree_util.tree_leaves(g)]  # NumPy: no compiles
+    assert all(np.isfinite(leaf).all() for leaf in leaves)
+    sigma = np.asarray(g["params"]["net"]["enc_0"]["pairs"]["rot"]["attn"]["sigma"])
+    assert np.abs(sigma).sum() > 0.0  # the distance fall-off is trained
+    assert sum(np.abs(leaf).sum() for leaf in leaves) > 0.0
 
 
 def test_padded_rows_leave_real_outputs_unchanged(setup):

@@ -108,8 +108,8 @@ def test_k_step_loss_feeds_predictions_back():
     with pytest.raises(ValueError, match="window"):
         window_loss_terms(step, params, stats, f3, nt, mask, k=2, train=False, rng=None)
     # gradients flow through both steps
-    g = jax.grad(lambda p: window_loss_terms(step, p, stats, frames, nt, mask, k=2, train=False,
-                                             rng=None)["loss_sum"])(params)
+    g = jax.jit(jax.grad(lambda p: window_loss_terms(step, p, stats, frames, nt, mask, k=2,
+                                                     train=False, rng=None)["loss_sum"]))(params)
     assert all(np.isfinite(np.asarray(x)).all() for x in jax.tree.leaves(g))
 
 
@@ -209,10 +209,10 @@ def test_pushforward_starts_the_loss_from_the_models_own_prediction():
                               train=False, rng=None)
     np.testing.assert_allclose(terms["loss_sum"], manual(params, pushed), rtol=1e-5)
     # no gradient through the pushed step: equal to the gradient with s^_t+1 held constant
-    g = jax.grad(lambda p: window_loss_terms(step, p, stats, frames, nt, mask, k=1,
-                                             pushforward=1, train=False,
-                                             rng=None)["loss_sum"])(params)
-    g_const = jax.grad(manual)(params, pushed)
+    g = jax.jit(jax.grad(lambda p: window_loss_terms(step, p, stats, frames, nt, mask, k=1,
+                                                     pushforward=1, train=False,
+                                                     rng=None)["loss_sum"]))(params)
+    g_const = jax.jit(jax.grad(manual))(params, pushed)  # jitted: one program, not op by op
     for a, b in zip(jax.tree.leaves(g), jax.tree.leaves(g_const), strict=True):
         np.testing.assert_allclose(a, b, rtol=2e-3, atol=1e-5)
     with pytest.raises(ValueError, match="window"):
