@@ -177,8 +177,7 @@ def _inward_after_training(wall_noise: float, features: str) -> float:
     x = np.asarray(frames[1]).copy()
     _, radial = _radial(x[out])
     x[out] += 0.1 * radial
-    pred = jax.jit(lambda p, x: step(p, STATS, x, x, nt, mask).positions)(state.params,
-                                                                          jnp.asarray(x))
+    pred = step(state.params, STATS, jnp.asarray(x), jnp.asarray(x), nt, mask).positions
     accel = np.asarray(pred)[out] - x[out]
     return float(-np.mean(np.sum(accel * radial, axis=1)))
 
