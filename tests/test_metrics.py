@@ -102,3 +102,33 @@ def test_containment_with_wall_mesh_and_open_ends():
     assert out == [0.0, 1.0, 0.0, 0.0]
     with pytest.raises(DatasetError):
         fit_vessel_wall(positions, node_type, wall_cells=tris)  # indices hit clot nodes
+
+
+def test_past_an_open_end_as_the_guards_decide_it():
+    """With wall triangles, a node leaves through an open end exactly when the guards' exact
+    wall query says so (``past_end``); the per-node rim test disagrees on an irregular mesh."""
+    import jax.numpy as jnp
+
+    from thrombojax.eval.metrics import VesselWall, signed_wall_distance
+    from thrombojax.simulator.wall import nearest_wall_point
+    from thrombojax.simulator.wall_build import wall_from_simulation
+
+    rng = np.random.default_rng(0)
+    wall, tris = _tube_mesh(n_ring=16, n_len=13)
+    wall = wall + rng.normal(0.0, 0.04, wall.shape)  # irregular, as a solver's mesh
+    positions = np.concatenate([[[3.0, 0.0, 0.0]], wall])
+    node_type = np.array([NodeType.CLOT] + [NodeType.VESSEL] * len(wall))
+    vw = fit_vessel_wall(positions, node_type, wall_cells=tris + 1)
+    guard_wall = wall_from_simulation(positions, node_type, tris + 1, block_size=16)
+    n = 600  # points around the outlet (x = 6), outside the tube's radius
+    x, r, phi = rng.uniform(5.6, 6.4, n), rng.uniform(1.1, 2.0, n), rng.uniform(0, 2 * np.pi, n)
+    p = np.stack([x, r * np.cos(phi), r * np.sin(phi)], axis=1)
+    dist, past = signed_wall_distance(vw, p, return_past_end=True)
+    guards = np.asarray(nearest_wall_point(jnp.asarray(p, jnp.float32), guard_wall).past_end)
+    out = dist > 0.5 * vw.spacing
+    assert out.sum() > 400 and 50 < guards[out].sum() < out.sum() - 50  # both kinds occur
+    np.testing.assert_array_equal(past[out], guards[out])
+    # the point-cloud test (no triangles) decides some of these nodes otherwise
+    cloud = VesselWall(points=vw.points, normals=vw.normals, rim_dir=vw.rim_dir,
+                       spacing=vw.spacing)
+    assert (signed_wall_distance(cloud, p, return_past_end=True)[1][out] != guards[out]).sum() > 5

@@ -18,8 +18,12 @@ nearest wall neighbours, oriented by a ray test: the inward side is the side who
 meets the opposite wall first) and call a clot node *outside* when its signed distance
 ``(p - w) . n_w``, averaged over its 3 nearest wall nodes, exceeds ``tol`` (default half
 the median wall-node spacing, so contact penetration at solver precision does not count).
-A clot node past an open vessel end (its nearest wall node is on the rim, detected as a
-one-sided neighbourhood, and it lies beyond it) is not outside: the clot left through the outlet.
+A clot node past an open vessel end is not outside: the clot left through the outlet. With
+wall triangles (``wall_cells``) a node is past an open end when its nearest point on the wall
+mesh lies on an open (one-triangle) edge or a rim vertex: the test the rollout's guards use
+(``past_end`` of :func:`thrombojax.simulator.wall.nearest_wall_point`), so the two agree on
+which nodes left. Without triangles, when its nearest wall node is on the rim (detected as a
+one-sided neighbourhood) and it lies beyond it.
 """
 
 from __future__ import annotations
@@ -29,6 +33,7 @@ from flax import struct
 from scipy.spatial import cKDTree
 
 from thrombojax.errors import DatasetError
+from thrombojax.simulator.wall import closest_point_on_triangle
 from thrombojax.types import NodeType
 
 __all__ = [
@@ -100,12 +105,19 @@ class VesselWall:
         rim_dir: ``[n_wall, 3]`` for nodes on an open end of the vessel (the rim), the unit
             in-surface direction pointing out of the wall; zero elsewhere.
         spacing: median distance between neighbouring wall nodes (scalar).
+        cells: ``[F, 3]`` wall triangles (indices into ``points``) when the data has them, else
+            ``None``.
+        open_feature: ``[F, 7]`` bool with ``cells``: whether each closest-point region of a
+            triangle (face, vertex a / b / c, edge ab / bc / ca, the order of
+            :func:`thrombojax.simulator.wall.closest_point_on_triangle`) lies on an open end.
     """
 
     points: np.ndarray
     normals: np.ndarray
     rim_dir: np.ndarray
     spacing: float = struct.field(pytree_node=False)
+    cells: np.ndarray | None = None
+    open_feature: np.ndarray | None = None
 
 
 def _orient_by_rays(points: np.ndarray, normals: np.ndarray, spacing: float) -> np.ndarray:
@@ -167,8 +179,8 @@ def _rim_directions(points: np.ndarray, normals: np.ndarray, nbrs: np.ndarray) -
     return np.where((gaps[rows, widest] > 0.75 * np.pi)[:, None], direction, 0.0)
 
 
-def _mesh_normals_and_rim(pts: np.ndarray, tris: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Area-weighted vertex normals (unoriented) and rim directions from wall triangles."""
+def _mesh_normals_and_rim(pts: np.ndarray, tris: np.ndarray):
+    """Area-weighted vertex normals (unoriented), rim directions and open features ``[F, 7]``."""
     a, b, c = (pts[tris[:, i]] for i in range(3))
     face = np.cross(b - a, c - a)  # length = 2 x area
     normals = np.zeros_like(pts)
@@ -185,7 +197,11 @@ def _mesh_normals_and_rim(pts: np.ndarray, tris: np.ndarray) -> tuple[np.ndarray
     rim = np.zeros_like(pts)
     for i in range(2):
         np.add.at(rim, e[:, i], mid - pts[t])
-    return normals, rim
+    on_rim = np.zeros(pts.shape[0], bool)
+    on_rim[e.ravel()] = True
+    edge_open = boundary.reshape(3, -1).T  # [F, 3]: ab, bc, ca
+    open_feature = np.concatenate([np.zeros((len(tris), 1), bool), on_rim[tris], edge_open], 1)
+    return normals, rim, open_feature
 
 
 def fit_vessel_wall(
@@ -222,12 +238,13 @@ def fit_vessel_wall(
         tris = remap[np.asarray(wall_cells)]
         if (tris < 0).any():
             raise DatasetError("fit_vessel_wall: wall_cells reference non-vessel nodes")
-        normals, rim = _mesh_normals_and_rim(pts, tris)
+        normals, rim, open_feature = _mesh_normals_and_rim(pts, tris)
         normals /= np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-12)
         normals = _orient(pts, normals, spacing, max_rays)
         rim -= np.einsum("nk,nk->n", rim, normals)[:, None] * normals
         rim_dir = rim / np.maximum(np.linalg.norm(rim, axis=1, keepdims=True), 1e-12)
-        return VesselWall(points=pts, normals=normals, rim_dir=rim_dir, spacing=spacing)
+        return VesselWall(points=pts, normals=normals, rim_dir=rim_dir, spacing=spacing,
+                          cells=tris, open_feature=open_feature)
     nbrs = pts[idx] - pts[idx].mean(axis=1, keepdims=True)  # [n, k, 3]
     _, vecs = np.linalg.eigh(np.einsum("nki,nkj->nij", nbrs, nbrs))
     normals = vecs[:, :, 0]  # eigenvector of the smallest eigenvalue
@@ -245,8 +262,8 @@ def signed_wall_distance(
         wall: the fitted :class:`VesselWall`.
         points: ``[..., 3]`` query points.
         k: nearest wall nodes averaged.
-        return_past_end: also return whether each point lies past an open vessel end
-            (its nearest wall node is on the rim and it lies beyond it).
+        return_past_end: also return whether each point lies past an open vessel end (module
+            docstring: from the wall triangles when the wall has them).
     Returns:
         ``[...]`` float64, and ``[...]`` bool when ``return_past_end``.
     """
@@ -258,9 +275,35 @@ def signed_wall_distance(
     s = np.einsum("nkj,nkj->nk", flat[:, None] - wall.points[idx], wall.normals[idx]).mean(1)
     if not return_past_end:
         return s.reshape(pts.shape[:-1])
-    near = idx[:, 0]
-    past = np.einsum("nj,nj->n", flat - wall.points[near], wall.rim_dir[near]) > 0
+    if wall.cells is not None:
+        past = _past_open_end_of_mesh(wall, flat)
+    else:
+        near = idx[:, 0]
+        past = np.einsum("nj,nj->n", flat - wall.points[near], wall.rim_dir[near]) > 0
     return s.reshape(pts.shape[:-1]), past.reshape(pts.shape[:-1])
+
+
+def _past_open_end_of_mesh(wall: VesselWall, flat: np.ndarray, *, k: int = 16,
+                           chunk: int = 16_384) -> np.ndarray:
+    """``[n]`` bool: the nearest point of the wall mesh lies on an open edge or rim vertex.
+
+    The nearest point is searched among the ``k`` triangles with the nearest centroids, as the
+    guards' wall orients itself (:mod:`thrombojax.simulator.wall_build`).
+    """
+    verts = wall.points[wall.cells]  # [F, 3, 3]
+    k = min(k, len(verts))
+    tree = cKDTree(verts.mean(axis=1))
+    past = np.zeros(flat.shape[0], bool)
+    for lo in range(0, flat.shape[0], chunk):
+        p = flat[lo:lo + chunk]
+        cand = tree.query(p, k=k)[1].reshape(len(p), k)
+        cv = verts[cand]  # [n, k, 3, 3]
+        cp, region = closest_point_on_triangle(p[:, None], cv[..., 0, :], cv[..., 1, :],
+                                               cv[..., 2, :], xp=np)
+        best = np.argmin(np.sum((p[:, None] - cp) ** 2, axis=-1), axis=1)
+        rows = np.arange(len(p))
+        past[lo:lo + chunk] = wall.open_feature[cand[rows, best], region[rows, best]]
+    return past
 
 
 def fraction_outside(
