@@ -9,9 +9,10 @@ easy wins, the frames in between are where rollouts run. A window ``(s_{t-1}, s_
   (:func:`thrombojax.study.skip_frames`): the clot starts from rest; rollouts skip these frames;
 - ``rollout``: ``t >= skip_frames``, every window a rollout predicts;
 - ``exit``: ``t + 1 >= exit_frame``, where :func:`exit_frame` is the first frame in which a true
-  clot node lies past an open end of the vessel that it did not lie past at frame 0 (the
-  open-end test of :func:`thrombojax.eval.metrics.fit_vessel_wall`, from the wall triangles when
-  the dataset has them, with no wall node further out around it): the clot passing the outlet
+  clot node lies past an open end of the vessel that it did not lie past at frame 0 (its nearest
+  wall node is on the rim of :func:`thrombojax.eval.metrics.fit_vessel_wall`, from the wall
+  triangles when the dataset has them, it lies beyond it, and no wall node lies further out
+  around it): the clot passing the outlet
   and what follows; empty when the clot never leaves. Nodes past an open end at frame 0 (a clot
   that enters through the inlet) do not count;
 - ``rollout_before_exit``: ``rollout`` windows that are not ``exit`` windows: the phase the
@@ -55,7 +56,7 @@ def exit_frame(wall: VesselWall, positions: np.ndarray, clot_mask: np.ndarray, *
                margin: float = 0.0, k: int = 16) -> int | None:
     """First frame in which a true clot node is past an open vessel end it was not past at 0.
 
-    A node is past an open end when its nearest wall node lies on the rim (the open-end test of
+    A node is past an open end when its nearest wall node lies on the rim (``rim_dir`` of
     :func:`thrombojax.eval.metrics.fit_vessel_wall`), the node lies beyond that rim node along
     the rim's outward in-surface direction by more than ``margin``, and none of its ``k``
     nearest wall nodes lies further in that direction (the wall does not go on: this rejects the
