@@ -328,5 +328,7 @@ def fraction_outside(
     """
     tol = 0.5 * wall.spacing if tol is None else tol
     clot = np.asarray(trajectory)[:, np.asarray(clot_mask, bool)]
-    dist, past = signed_wall_distance(wall, clot, return_past_end=True)
-    return ((dist > tol) & ~past).mean(axis=1)
+    out = signed_wall_distance(wall, clot) > tol
+    if out.any():  # the open-end test only where it can matter
+        out[out] = ~signed_wall_distance(wall, clot[out], return_past_end=True)[1]
+    return out.mean(axis=1)
