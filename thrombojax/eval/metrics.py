@@ -33,7 +33,7 @@ from flax import struct
 from scipy.spatial import cKDTree
 
 from thrombojax.errors import DatasetError
-from thrombojax.simulator.wall import closest_point_on_triangle
+from thrombojax.simulator.wall_build import nearest_triangle
 from thrombojax.types import NodeType
 
 __all__ = [
@@ -275,35 +275,13 @@ def signed_wall_distance(
     s = np.einsum("nkj,nkj->nk", flat[:, None] - wall.points[idx], wall.normals[idx]).mean(1)
     if not return_past_end:
         return s.reshape(pts.shape[:-1])
-    if wall.cells is not None:
-        past = _past_open_end_of_mesh(wall, flat)
+    if wall.cells is not None:  # as the guards decide it: nearest mesh point on an open feature
+        face, _, region = nearest_triangle(flat, wall.points[wall.cells])
+        past = wall.open_feature[face, region]
     else:
         near = idx[:, 0]
         past = np.einsum("nj,nj->n", flat - wall.points[near], wall.rim_dir[near]) > 0
     return s.reshape(pts.shape[:-1]), past.reshape(pts.shape[:-1])
-
-
-def _past_open_end_of_mesh(wall: VesselWall, flat: np.ndarray, *, k: int = 16,
-                           chunk: int = 16_384) -> np.ndarray:
-    """``[n]`` bool: the nearest point of the wall mesh lies on an open edge or rim vertex.
-
-    The nearest point is searched among the ``k`` triangles with the nearest centroids, as the
-    guards' wall orients itself (:mod:`thrombojax.simulator.wall_build`).
-    """
-    verts = wall.points[wall.cells]  # [F, 3, 3]
-    k = min(k, len(verts))
-    tree = cKDTree(verts.mean(axis=1))
-    past = np.zeros(flat.shape[0], bool)
-    for lo in range(0, flat.shape[0], chunk):
-        p = flat[lo:lo + chunk]
-        cand = tree.query(p, k=k)[1].reshape(len(p), k)
-        cv = verts[cand]  # [n, k, 3, 3]
-        cp, region = closest_point_on_triangle(p[:, None], cv[..., 0, :], cv[..., 1, :],
-                                               cv[..., 2, :], xp=np)
-        best = np.argmin(np.sum((p[:, None] - cp) ** 2, axis=-1), axis=1)
-        rows = np.arange(len(p))
-        past[lo:lo + chunk] = wall.open_feature[cand[rows, best], region[rows, best]]
-    return past
 
 
 def fraction_outside(

@@ -34,7 +34,7 @@ from thrombojax.errors import ConfigError, DatasetError
 from thrombojax.simulator.wall import Wall, closest_point_on_triangle
 from thrombojax.types import NodeType
 
-__all__ = ["wall_from_simulation"]
+__all__ = ["nearest_triangle", "wall_from_simulation"]
 
 _SLACK_DIV = 8.0  # sagitta of an arc at mid-edge: |e| |n_a - n_b| / 8
 _FAR = 1.0e4  # where padded elements sit (scaled coordinates are in [-1, 1])
@@ -82,8 +82,34 @@ def _consistent_winding(tris: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.nd
     return tris, part, edge_count
 
 
-def _closest_np(p, a, b, c):
-    return closest_point_on_triangle(p, a, b, c, xp=np)
+def nearest_triangle(points: np.ndarray, verts: np.ndarray, *, k: int = 16,
+                     chunk: int = 16_384) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Nearest triangle of each point, among the ``k`` with the nearest centroids (host, numpy).
+
+    Args:
+        points: ``[n, 3]``. verts: ``[F, 3, 3]`` triangle vertices.
+        k: candidate triangles per point; chunk: points measured at once (bounds the memory).
+    Returns:
+        ``(face [n], closest point [n, 3], region [n])``, region as in
+        :func:`thrombojax.simulator.wall.closest_point_on_triangle`.
+    """
+    k = min(k, len(verts))
+    tree = cKDTree(verts.mean(axis=1))
+    face = np.zeros(len(points), np.int64)
+    point = np.zeros((len(points), 3))
+    region = np.zeros(len(points), np.int32)
+    for lo in range(0, len(points), chunk):
+        p = points[lo:lo + chunk]
+        cand = tree.query(p, k=k)[1].reshape(len(p), k)
+        cv = verts[cand]  # [n, k, 3, 3]
+        cp, reg = closest_point_on_triangle(p[:, None], cv[..., 0, :], cv[..., 1, :],
+                                            cv[..., 2, :], xp=np)
+        best = np.argmin(np.sum((p[:, None] - cp) ** 2, axis=-1), axis=1)
+        rows = np.arange(len(p))
+        face[lo:lo + chunk] = cand[rows, best]
+        point[lo:lo + chunk] = cp[rows, best]
+        region[lo:lo + chunk] = reg[rows, best]
+    return face, point, region
 
 
 def _ray_votes(origins, dirs, hit_dist) -> np.ndarray:
@@ -207,14 +233,8 @@ def _triangle_fields(pts, tris, clot, rng, n_rays):
     normal = _unit(np.cross(verts[:, 1] - verts[:, 0], verts[:, 2] - verts[:, 0]))
     cent = verts.mean(axis=1)
     if len(clot):
-        k = min(16, len(tris))
-        _, cand = cKDTree(cent).query(clot, k=k)
-        cand = cand.reshape(len(clot), k)
-        cv = verts[cand]
-        cp, _ = _closest_np(clot[:, None], cv[..., 0, :], cv[..., 1, :], cv[..., 2, :])
-        best = np.argmin(np.sum((clot[:, None] - cp) ** 2, axis=-1), axis=1)
-        f = cand[np.arange(len(clot)), best]
-        vote = np.sign(np.einsum("nk,nk->n", clot - cp[np.arange(len(clot)), best], normal[f]))
+        f, cp, _ = nearest_triangle(clot, verts)
+        vote = np.sign(np.einsum("nk,nk->n", clot - cp, normal[f]))
         vote_part = part[f]
     else:
         vote, vote_part = np.zeros(0), np.zeros(0, np.int64)
