@@ -23,20 +23,22 @@ __all__ = ["write_reports", "table", "seed_lines", "uncertainty_lines", "plot_er
 
 
 def write_reports(out: pathlib.Path, results: dict, *, title: str, test_sims: list[str],
-                  nodes: int | None, env: dict | None = None) -> str:
+                  nodes: int | None, env: dict | None = None,
+                  sims_kind: str = "held-out simulations") -> str:
     """Write ``table.md``, ``ladder.json`` and ``error_per_step.png`` into ``out`` (atomically);
     returns the markdown table. ``env``: the record of where the results were measured
     (default: this process's :func:`environment`; pass the measuring machine's when the report
-    is written elsewhere)."""
+    is written elsewhere). ``sims_kind``: what the title calls ``test_sims`` (e.g. "training
+    simulations" when models are rolled out on vessels they trained on)."""
     text = table(results)
     env = environment() if env is None else env
     atomic_write_text(out / "table.md",
-        f"# Stability ladder ({title}, held-out simulations {', '.join(test_sims)})\n\n{text}\n"
+        f"# Stability ladder ({title}, {sims_kind} {', '.join(test_sims)})\n\n{text}\n"
         "Errors in vessel radii (r); ratios to constant velocity (CV). Training per rung: the "
         "`epochs` column (a rung trained with `--minutes M` gets the epochs one timed epoch "
         "says fit M minutes on the machine; with `--epochs N`, exactly N)"
         + (f"; {nodes} nodes per simulation" if nodes else "") + ".\n\n"
-        + (f"Uncertainty:\n{unc}\n" if (unc := uncertainty_lines(results)) else "")
+        + (f"Uncertainty:\n{unc}\n" if (unc := uncertainty_lines(results, sims_kind)) else "")
         + (f"Seeds:\n{seeds}\n" if (seeds := seed_lines(results)) else "")
         + "".join(f"- {k}: {v}\n" for k, v in env.items()))
     atomic_write_text(out / "ladder.json", json.dumps({"environment": env, "results": results},
@@ -96,8 +98,9 @@ def seed_lines(results: dict) -> str:
     return "".join(lines)
 
 
-def uncertainty_lines(results: dict) -> str:
-    """One line per ensemble rung: how well its spread predicts the error of its mean."""
+def uncertainty_lines(results: dict, sims_kind: str = "held-out simulations") -> str:
+    """One line per ensemble rung: how well its spread predicts the error of its mean (means
+    over the ``sims_kind``)."""
     lines = []
     for name, res in results.items():
         sims = [s["uncertainty"] for s in res["simulations"].values() if "uncertainty" in s]
@@ -115,7 +118,7 @@ def uncertainty_lines(results: dict) -> str:
             f"mean spread {avg('calibration'):.2f} (1: calibrated, > 1: over-confident); "
             f"{100 * avg('within_2_spread'):.0f} % of nodes within 2 spreads; mean spread "
             f"{avg('mean_spread'):.3f} r against a mean error of {avg('mean_error'):.3f} r "
-            "(means over the held-out simulations)\n")
+            f"(means over the {sims_kind})\n")
     return "".join(lines)
 
 

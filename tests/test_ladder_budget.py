@@ -262,3 +262,29 @@ def test_rungs_that_reuse_one_rung_share_its_members(tmp_path, monkeypatch):
     old = tmp_path / guarded.name / "member_2" / "run"
     old.mkdir(parents=True)  # an earlier ladder's layout is used where it exists
     assert ladder._member_folder(guarded, tmp_path, 2) == old.parent
+
+
+def test_the_table_names_what_the_simulations_are(tmp_path, monkeypatch):
+    """write_reports titles its simulations "held-out" unless told otherwise (models rolled out
+    on vessels they trained on are not held out)."""
+    _ladder(monkeypatch)
+    report = sys.modules["ladder_report"]
+    monkeypatch.setattr(report, "plot_error_per_step", lambda *a, **k: None)
+    mean = {"mse1_all": 1.0, "mse1_all_cv": 2.0, "mse1_phase": 1.0, "mse1_phase_cv": 2.0,
+            "mse10": 0.1, "mse10_cv": 0.2, "mse_full": 0.5, "mse_full_cv": 1.0,
+            "final_centroid_r": 0.7, "final_centroid_cv_r": 3.0, "max_outside": 0.1,
+            "max_outside_cv": 0.5, "max_correction_r": 0.0}
+    results = {"r": {"mean": mean, "simulations": {}, "epochs": 3}}
+    report.write_reports(tmp_path, results, title="T", test_sims=["a", "b"], nodes=None)
+    first = (tmp_path / "table.md").read_text().splitlines()[0]
+    assert first == "# Stability ladder (T, held-out simulations a, b)"
+    report.write_reports(tmp_path, results, title="T", test_sims=["a", "b"], nodes=None,
+                         sims_kind="training simulations")
+    first = (tmp_path / "table.md").read_text().splitlines()[0]
+    assert first == "# Stability ladder (T, training simulations a, b)"
+    unc = {k: 0.5 for k in ("spearman", "pearson", "temporal_pearson", "calibration",
+                             "within_2_spread", "mean_spread", "mean_error")}
+    ensemble = {"ens": {"members": 2, "simulations": {"a": {"uncertainty": unc}}}}
+    assert "(means over the training simulations)" in report.uncertainty_lines(
+        ensemble, "training simulations")
+    assert "(means over the held-out simulations)" in report.uncertainty_lines(ensemble)

@@ -2,11 +2,13 @@
 (``table.md``, ``ladder.json``, ``error_per_step.png``) into OUT; each row's result is kept in
 ``OUT/<label>.json`` and reused when the command is run again. Run from the repository root::
 
-    python experiments/results/ladder_budget/bendvessel_shapes/cross_eval.py [--nodes N] OUT \\
-        DATA NAME1,NAME2,... "TITLE" LABEL=RUN[+RUN...][:guards] ...
+    python experiments/results/ladder_budget/bendvessel_shapes/cross_eval.py [--nodes N] \\
+        [--sims-kind TEXT] OUT DATA NAME1,NAME2,... "TITLE" LABEL=RUN[+RUN...][:guards] ...
 
 ``--nodes N`` rolls out on the fixed subset of N nodes per simulation that the ladder's
-``--nodes`` uses (ClotEntry: 2,048); without it, all nodes.
+``--nodes`` uses (ClotEntry: 2,048); without it, all nodes. ``--sims-kind TEXT`` is what the
+table's title calls the simulations (default "held-out simulations"; e.g. "training
+simulations").
 
 Every run is evaluated at its last checkpoint; ``+`` joins runs into an ensemble (score a member
 alone with a row of its own); ``:guards`` turns the physics guards on, and
@@ -30,9 +32,13 @@ from thrombojax.io.outputs import atomic_write_text  # noqa: E402
 
 
 def main() -> None:
-    argv, nodes = sys.argv[1:], None
-    if argv and argv[0] == "--nodes":
-        nodes, argv = int(argv[1]), argv[2:]
+    argv, nodes, sims_kind = sys.argv[1:], None, "held-out simulations"
+    while argv and argv[0] in ("--nodes", "--sims-kind"):
+        if argv[0] == "--nodes":
+            nodes = int(argv[1])
+        else:
+            sims_kind = argv[1]
+        argv = argv[2:]
     out, data, names, title = pathlib.Path(argv[0]), argv[1], argv[2].split(","), argv[3]
     out.mkdir(parents=True, exist_ok=True)
     results = {}
@@ -55,7 +61,8 @@ def main() -> None:
                                        guard_options=guard_options)
         results[label]["measured"] = environment()
         atomic_write_text(path, json.dumps(results[label], indent=1))
-    print(write_reports(out, results, title=title, test_sims=names, nodes=nodes))
+    print(write_reports(out, results, title=title, test_sims=names, nodes=nodes,
+                        sims_kind=sims_kind))
 
 
 if __name__ == "__main__":
