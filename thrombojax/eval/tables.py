@@ -17,7 +17,7 @@ import optax
 from thrombojax import __version__
 from thrombojax.xla_options import MODEL_CPU_OPTIONS, TRAIN_CPU_OPTIONS, cpu_compiler_options
 
-__all__ = ["markdown_table", "environment"]
+__all__ = ["markdown_table", "environment", "cpu_model"]
 
 
 def markdown_table(header: list[str], rows: list[list[Any]]) -> str:
@@ -37,6 +37,27 @@ def _program() -> str:
     return "thrombojax" if name == "__main__.py" else name
 
 
+def cpu_model(cpuinfo: str | None = None) -> str:
+    """The processor, as ``/proc/cpuinfo`` names it, with its family and model numbers (a
+    virtual machine may name only the vendor, e.g. "AMD EPYC", while different processors
+    give different speeds and, from their kernels' rounding, different trained models);
+    ``platform.processor()`` where there is no ``/proc/cpuinfo``. ``cpuinfo``: its text (tests).
+    """
+    if cpuinfo is None:
+        try:
+            cpuinfo = pathlib.Path("/proc/cpuinfo").read_text()
+        except OSError:
+            return platform.processor() or "unknown"
+    fields = {}
+    for line in cpuinfo.splitlines():
+        key, sep, value = line.partition(":")
+        if sep and key.strip() not in fields:
+            fields[key.strip()] = value.strip()
+    name = fields.get("model name") or platform.processor() or "unknown"
+    numbers = [f"{k} {fields[k]}" for k in ("cpu family", "model") if k in fields]
+    return f"{name} ({', '.join(numbers)})" if numbers else name
+
+
 def environment() -> dict:
     """Device, versions, date, command and machine load: recorded beside every figure.
 
@@ -50,6 +71,7 @@ def environment() -> dict:
         "device": f"{dev.platform}:{getattr(dev, 'device_kind', '')}",
         "n_devices": jax.device_count(),
         "cpu_count": os.cpu_count(),
+        "cpu": cpu_model(),
         "load_avg_1_5_15": [round(x, 2) for x in os.getloadavg()],
         # tcmalloc makes a CPU training step faster (docs/performance.md): timings depend on it
         "allocator": "tcmalloc" if "tcmalloc" in os.environ.get("LD_PRELOAD", "") else "default",
