@@ -11,7 +11,6 @@ from __future__ import annotations
 import importlib.metadata
 import json
 import os
-import platform
 import statistics
 import subprocess
 import sys
@@ -41,22 +40,13 @@ def _version(dist: str) -> str | None:
         return None
 
 
-def _cpu_model() -> str:
-    try:
-        with open("/proc/cpuinfo") as f:
-            return next((ln.split(":", 1)[1].strip() for ln in f if ln.startswith("model name")),
-                        platform.processor())
-    except OSError:
-        return platform.processor()
-
-
 def environment(args, tcmalloc: str | None) -> dict:
-    """Where and how it ran: thrombojax's record plus the PyTorch stack and the settings."""
+    """Where and how it ran: thrombojax's record (the processor included) plus the PyTorch stack
+    and the settings."""
     from thrombojax.eval.tables import environment as base
     env = base()
     env["command"] = " ".join(["python", "benchmarks/peer.py", *sys.argv[1:]])
     env["nice"] = os.nice(0)
-    env["cpu"] = _cpu_model()
     env["load_avg_start"] = env.pop("load_avg_1_5_15")
     for dist in ("torch", "nvidia-physicsnemo", "torch_cluster", "torch_scatter",
                  "torch_geometric", "balltree-erwin", "einops"):
