@@ -21,10 +21,9 @@ import numpy as np
 
 from thrombojax.io.outputs import atomic_write_text, check_targets
 
-
-def smooth(x: np.ndarray, width: int) -> np.ndarray:
-    """Moving mean over ``width`` frames (valid part only)."""
-    return np.convolve(x, np.ones(width) / width, mode="valid")
+# the moving mean of the speed profiles in ../clotentry_room/ (the same smoothing)
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "clotentry_room"))
+from speed_profile import smooth  # noqa: E402
 
 
 def rows(result: dict, label: str, width: int) -> list[str]:
