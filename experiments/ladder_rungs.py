@@ -39,6 +39,8 @@ from ladder_recipes import (  # noqa: F401  (COMMON, SMALL_MGN, STUDY_SIZE: for 
     FOLLOW_NOHIST_CM,
     FOLLOW_NOHIST_CM_FRAME,
     FOLLOW_ROOM,
+    FOLLOW_ROOM30,
+    FOLLOW_ROOM30_WIDE,
     FOLLOW_SPEED,
     FOLLOW_SPEED30,
     FOLLOW_SPEED50,
@@ -350,11 +352,14 @@ RUNGS: tuple[Rung, ...] = (
     # it with the k-step loss (3 steps after one push-forward step; 6 steps), last checkpoint,
     # alone and guarded; seeds 0-2 as an ensemble, guarded and alone
     # and with speed noise and wall features (``follow_speed_*``; noise 0.3 and 0.5:
-    # ``follow_speed30_*``, ``follow_speed50_*``)
+    # ``follow_speed30_*``, ``follow_speed50_*``; with the room too: ``follow_room30_*``,
+    # at a 1.5 r cutoff ``follow_room30_wide_*``)
     *(rung for name, recipe in (("follow_kstep", FOLLOW_KSTEP), ("follow_kstep6", FOLLOW_KSTEP6),
                                 ("follow_speed", FOLLOW_SPEED), ("follow_room", FOLLOW_ROOM),
                                 ("follow_speed30", FOLLOW_SPEED30),
-                                ("follow_speed50", FOLLOW_SPEED50))
+                                ("follow_speed50", FOLLOW_SPEED50),
+                                ("follow_room30", FOLLOW_ROOM30),
+                                ("follow_room30_wide", FOLLOW_ROOM30_WIDE))
       for rung in (
           Rung(f"{name}_last", recipe, checkpoint="last"),
           Rung(f"{name}_last_guards", recipe, guards=True, reuse=f"{name}_last",
