@@ -41,6 +41,7 @@ from ladder_recipes import (  # noqa: F401  (COMMON, SMALL_MGN, STUDY_SIZE: for 
     FOLLOW_ROOM,
     FOLLOW_ROOM30,
     FOLLOW_ROOM30_WIDE,
+    FOLLOW_SHAPE30,
     FOLLOW_SPEED,
     FOLLOW_SPEED30,
     FOLLOW_SPEED50,
@@ -351,15 +352,15 @@ RUNGS: tuple[Rung, ...] = (
          checkpoint="last"),
     # it with the k-step loss (3 steps after one push-forward step; 6 steps), last checkpoint,
     # alone and guarded; seeds 0-2 as an ensemble, guarded and alone
-    # and with speed noise and wall features (``follow_speed_*``; noise 0.3 and 0.5:
-    # ``follow_speed30_*``, ``follow_speed50_*``; with the room too: ``follow_room30_*``,
-    # at a 1.5 r cutoff ``follow_room30_wide_*``)
+    # and with speed noise and wall features (``follow_speed*_*``: noise 0.1, 0.3, 0.5), noise
+    # 0.3 with the room (at 0.5 and 1.5 r) or the clot's shape (``follow_room30*``, ``..._shape30``)
     *(rung for name, recipe in (("follow_kstep", FOLLOW_KSTEP), ("follow_kstep6", FOLLOW_KSTEP6),
                                 ("follow_speed", FOLLOW_SPEED), ("follow_room", FOLLOW_ROOM),
                                 ("follow_speed30", FOLLOW_SPEED30),
                                 ("follow_speed50", FOLLOW_SPEED50),
                                 ("follow_room30", FOLLOW_ROOM30),
-                                ("follow_room30_wide", FOLLOW_ROOM30_WIDE))
+                                ("follow_room30_wide", FOLLOW_ROOM30_WIDE),
+                                ("follow_shape30", FOLLOW_SHAPE30))
       for rung in (
           Rung(f"{name}_last", recipe, checkpoint="last"),
           Rung(f"{name}_last_guards", recipe, guards=True, reuse=f"{name}_last",
