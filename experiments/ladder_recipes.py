@@ -201,5 +201,6 @@ FOLLOW_ROOM30_WIDE = {**FOLLOW_ROOM30, "wall_features": 1.5}
 # place along the motion and the clot's length and width): within every ClotEntry simulation the
 # true clot's speed follows its length along the motion (correlation -0.73 to -0.98 of 10-frame
 # means) more closely than the clearance at its centroid (+0.68 to +0.92;
-# results/ladder_budget/clotentry_speed_room/clot_length.md) (rungs ``follow_shape30_*``)
+# experiments/results/ladder_budget/clotentry_speed_room/clot_length.md; rungs
+# ``follow_shape30_*``)
 FOLLOW_SHAPE30 = {**FOLLOW_SPEED30, "shape_features": 1.0}
