@@ -42,7 +42,7 @@ from thrombojax.types import NodeType, clot_mask
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "clotentry_room"))
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[3]))
-from clot_speed import centroid_speed  # noqa: E402
+from clot_speed import centroid_speed, clearance  # noqa: E402
 from speed_profile import smooth  # noqa: E402
 
 COLUMNS = ("length", "clearance", "ahead")
@@ -60,7 +60,8 @@ def profiles(positions: np.ndarray, node_type: np.ndarray, skip: int, radius: fl
         raise ValueError("needs clot nodes and vessel (wall) nodes")
     cen, speed = centroid_speed(positions, clot)
     tree, nodes = cKDTree(wall), positions[:, clot].astype(np.float64)
-    out = {"speed": speed[skip:] / radius, **{k: [] for k in COLUMNS}}
+    out = {"speed": speed[skip:] / radius, "clearance": clearance(cen[skip:-1], wall) / radius,
+           "length": [], "ahead": []}
     for t in range(skip, positions.shape[0] - 1):
         d = cen[t + 1] - cen[t]
         u = d / max(float(np.linalg.norm(d)), 1e-30)
@@ -68,7 +69,6 @@ def profiles(positions: np.ndarray, node_type: np.ndarray, skip: int, radius: fl
         lo, hi = np.quantile(along, [0.05, 0.95])
         front = nodes[t][along >= hi].mean(axis=0)
         out["length"].append((hi - lo) / radius)
-        out["clearance"].append(tree.query(cen[t])[0] / radius)
         out["ahead"].append(tree.query(front + u * radius)[0] / radius)
     return {k: np.asarray(v) for k, v in out.items()}
 
