@@ -21,7 +21,7 @@ __all__ = ["COMMON", "STUDY_SIZE", "SMALL_MGN", "SIGNED", "HISTNOISE", "WALK", "
            "FOLLOW_KSTEP", "FOLLOW_KSTEP6", "FOLLOW_SPEED", "NOISE", "ROTATION", "HISTORY",
            "DIRECTION", "DIRSPEED", "DIRSPEED3", "DIRSPEED_LAST", "FOLLOW_ROOM", "FOLLOW_SPEED30",
            "FOLLOW_SPEED50", "FOLLOW_ROOM30", "FOLLOW_ROOM30_WIDE", "FOLLOW_SHAPE30",
-           "FOLLOW_SPEED30_W07", "FOLLOW_ROOM30_W07",
+           "FOLLOW_SPEED30_W07", "FOLLOW_ROOM30_W07", "FOLLOW_CLEAR30",
            "NOHIST_ROLLOUT",
            "SPEED03", "SPEED10", "TSCALE"]
 
@@ -211,3 +211,10 @@ FOLLOW_SHAPE30 = {**FOLLOW_SPEED30, "shape_features": 1.0}
 # ``follow_room30_w07_*``; experiments/results/ladder_budget/clotentry_more_sims/)
 FOLLOW_SPEED30_W07 = {**FOLLOW_SPEED30, "warmup_epochs": 0.7}
 FOLLOW_ROOM30_W07 = {**FOLLOW_ROOM30, "warmup_epochs": 0.7}
+# speed noise 0.3 with the clot's clearance instead of its room (``clearance_features`` 1 r: the
+# distance from the clot's centroid to the nearest vessel node): the room is read through the
+# clot's own nodes, so where the containment guard puts a node back the room changes and the
+# guarded clot's speed with it (experiments/results/ladder_budget/clotentry_speed_room/margin/);
+# the clearance reads the clot through its centroid alone (rungs ``follow_clear30_*``;
+# experiments/results/ladder_budget/clotentry_clearance/)
+FOLLOW_CLEAR30 = {**FOLLOW_SPEED30, "clearance_features": 1.0}

@@ -354,7 +354,8 @@ RUNGS: tuple[Rung, ...] = (
     # alone and guarded; seeds 0-2 as an ensemble, guarded and alone
     # and with speed noise and wall features (``follow_speed*_*``: noise 0.1, 0.3, 0.5), noise
     # 0.3 with the room (at 0.5 and 1.5 r) or the clot's shape (``follow_room30*``, ``..._shape30``)
-    # and, with and without the room, warmed up over 0.7 epochs (``*_w07``: for more sims)
+    # and, with and without the room, warmed up over 0.7 epochs (``*_w07``: for more sims), and
+    # noise 0.3 with the clot's clearance instead of its room (``follow_clear30``)
     *(rung for name, recipe in (("follow_kstep", FOLLOW_KSTEP), ("follow_kstep6", FOLLOW_KSTEP6),
                                 ("follow_speed", FOLLOW_SPEED), ("follow_room", FOLLOW_ROOM),
                                 ("follow_speed30", FOLLOW_SPEED30),
@@ -363,7 +364,8 @@ RUNGS: tuple[Rung, ...] = (
                                 ("follow_room30_wide", FOLLOW_ROOM30_WIDE),
                                 ("follow_shape30", FOLLOW_SHAPE30),
                                 ("follow_speed30_w07", ladder_recipes.FOLLOW_SPEED30_W07),
-                                ("follow_room30_w07", ladder_recipes.FOLLOW_ROOM30_W07))
+                                ("follow_room30_w07", ladder_recipes.FOLLOW_ROOM30_W07),
+                                ("follow_clear30", ladder_recipes.FOLLOW_CLEAR30))
       for rung in (
           Rung(f"{name}_last", recipe, checkpoint="last"),
           Rung(f"{name}_last_guards", recipe, guards=True, reuse=f"{name}_last",

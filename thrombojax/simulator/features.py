@@ -14,7 +14,9 @@ appends, in this order and each only when the step has it:
 4. where the clot is against the vessel's open ends, ahead of its motion, per node and
    clot-wide (``outlet_radius > 0``; :func:`thrombojax.graph.vessel_axis.outlet_features`);
 5. each clot node's place along the clot's motion and the clot's length and width
-   (``shape_radius > 0``; :func:`thrombojax.graph.clot_shape.clot_shape_features`).
+   (``shape_radius > 0``; :func:`thrombojax.graph.clot_shape.clot_shape_features`);
+6. the distance from the clot's centroid to the nearest vessel node, on every clot node
+   (``clearance_radius > 0``; :func:`thrombojax.graph.clearance.clot_clearance`).
 """
 
 from __future__ import annotations
@@ -22,6 +24,7 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
+from thrombojax.graph.clearance import clot_clearance
 from thrombojax.graph.clot_shape import clot_shape_features
 from thrombojax.graph.vessel_axis import axis_velocity_features, outlet_features
 from thrombojax.graph.wall_nodes import clot_wall_mean, signed_wall_features, wall_node_features
@@ -60,4 +63,6 @@ def extra_features(step, stats, x_prev, x_cur, node_type, mask, velocity_scale, 
         extra.append(outlet_features(last, x_cur, node_type, mask, radius=step.outlet_radius))
     if step.shape_radius > 0:
         extra.append(clot_shape_features(last, x_cur, node_type, mask, scale=step.shape_radius))
+    if step.clearance_radius > 0:
+        extra.append(clot_clearance(x_cur, node_type, mask, scale=step.clearance_radius))
     return jnp.concatenate(extra, axis=-1) if extra else None

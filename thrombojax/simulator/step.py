@@ -39,6 +39,11 @@ wall_signed=True)`` gives instead the signed distance to the wall and its outwar
 (:func:`thrombojax.graph.wall_nodes.signed_wall_features`), which tell a node that crossed the
 wall from one inside it; ``wall_clot_mean=True`` adds their clot-wide mean distance
 (:func:`thrombojax.graph.wall_nodes.clot_wall_mean`: the room the whole clot has).
+``make_step(model, clearance_radius=L)`` (``L > 0``, scaled) gives every clot node the distance
+from the clot's centroid to the nearest vessel node, divided by ``L``
+(:func:`thrombojax.graph.clearance.clot_clearance`): the vessel's width where the clot stands,
+which sets its speed, read through the centroid alone (guard corrections of single nodes hardly
+move it), with no wall features needed.
 
 History: ``make_step(model, history=H)`` (``H >= 2``) also gives the model the accelerations of the
 ``H - 1`` steps before t, ``a_{t-j} = s_{t-j+1} - 2 s_{t-j} + s_{t-j-1}`` (in the step's frame,
@@ -155,6 +160,9 @@ class LearnedStep:
             clot's length and width (:func:`thrombojax.graph.clot_shape.clot_shape_features`,
             over this length, scaled); 0: off. (The order of all extra features:
             :mod:`thrombojax.simulator.features`.)
+        clearance_radius: > 0: clot nodes also get the distance from the clot's centroid to
+            the nearest vessel node divided by this length, scaled
+            (:func:`thrombojax.graph.clearance.clot_clearance`); 0: off.
         rest_edges: the step also reads the clot's rest state (``x_prev`` led by the
             simulation's first frame, :mod:`thrombojax.simulator.previous`) and the model's
             edges get their rest-state displacement (a model that reads edge features only).
@@ -174,13 +182,14 @@ class LearnedStep:
     outlet_radius: float = 0.0
     shape_radius: float = 0.0
     rest_edges: bool = False
+    clearance_radius: float = 0.0
 
     def __post_init__(self) -> None:
         if self.frame not in FRAMES:
             raise ConfigError(f"learned step: frame must be one of {list(FRAMES)}, "
                               f"got {self.frame!r}")
         for name in ("wall_cutoff", "axis_radius", "prior_radius", "lateral_radius",
-                     "outlet_radius", "shape_radius"):
+                     "outlet_radius", "shape_radius", "clearance_radius"):
             if not (getattr(self, name) >= 0 and getattr(self, name) < float("inf")):
                 raise ConfigError(f"learned step: {name} must be a finite number >= 0, "
                                   f"got {getattr(self, name)!r}")
@@ -383,11 +392,12 @@ def make_step(model: Surrogate, frame: str = "global", wall_cutoff: float = 0.0,
               axis_radius: float = 0.0, prior_radius: float = 0.0,
               lateral_radius: float = 0.0, wall_clot_mean: bool = False,
               outlet_radius: float = 0.0, shape_radius: float = 0.0,
-              rest_edges: bool = False) -> LearnedStep:
+              rest_edges: bool = False, clearance_radius: float = 0.0) -> LearnedStep:
     """The learned simulator of a surrogate in ``frame``, with wall features when
     ``wall_cutoff > 0``, vessel-axis features when ``axis_radius > 0``, the vessel-following
     prior when ``prior_radius > 0``, the lateral hold when ``lateral_radius > 0``, outlet
-    features when ``outlet_radius > 0``, clot shape features when ``shape_radius > 0``, the cell
+    features when ``outlet_radius > 0``, clot shape features when ``shape_radius > 0``, the
+    clot's clearance when ``clearance_radius > 0``, the cell
     ``grid`` where it pays, ``history`` previous frames and the rest state when ``rest_edges``
     (module docstring, LearnedStep)."""
     return LearnedStep(model=model, frame=frame, wall_cutoff=float(wall_cutoff), grid=grid,
@@ -397,4 +407,5 @@ def make_step(model: Surrogate, frame: str = "global", wall_cutoff: float = 0.0,
                        lateral_radius=float(lateral_radius),
                        wall_clot_mean=bool(wall_clot_mean),
                        outlet_radius=float(outlet_radius),
-                       shape_radius=float(shape_radius), rest_edges=bool(rest_edges))
+                       shape_radius=float(shape_radius), rest_edges=bool(rest_edges),
+                       clearance_radius=float(clearance_radius))

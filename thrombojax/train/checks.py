@@ -37,6 +37,7 @@ _RULES: dict[str, tuple[str, float, bool, bool]] = {
     "lateral_hold": ("float", 0.0, True, False),
     "outlet_features": ("float", 0.0, True, False),
     "shape_features": ("float", 0.0, True, False),
+    "clearance_features": ("float", 0.0, True, False),
     "noise_gamma": ("float", 0.0, True, False),
     "noise_shared": ("float", 0.0, True, False),
     "wall_noise": ("float", 0.0, True, False),

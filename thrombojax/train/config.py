@@ -152,6 +152,10 @@ class TrainConfig:
         shape_features: length, in vessel radii, that clot nodes' place along the clot's motion
             and the clot's length and width are given over, so the step sees a stretched clot
             (0: off; :func:`thrombojax.graph.clot_shape.clot_shape_features`).
+        clearance_features: length, in vessel radii, that the distance from the clot's
+            centroid to the nearest vessel node is divided by and given to every clot node:
+            the vessel's width where the clot stands, which sets its speed, read through the
+            centroid alone (0: off; :func:`thrombojax.graph.clearance.clot_clearance`).
         rest_edges: the step also reads the clot's rest state (the simulation's first frame)
             and MeshGraphNet's clot-clot edges get their rest-state displacement beside the
             current one, so the step sees each edge's strain (DeepMind's deforming plate;
@@ -218,6 +222,7 @@ class TrainConfig:
     lateral_hold: float = 0.0
     outlet_features: float = 0.0
     shape_features: float = 0.0
+    clearance_features: float = 0.0
     rest_edges: bool = False
     wall_signed: bool = False
     wall_clot_mean: bool = False
