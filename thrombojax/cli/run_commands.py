@@ -152,8 +152,7 @@ def _add_train(sub) -> None:
     p.add_argument("--lateral-hold", type=NN_FLOAT, help="take the clot-wide mean of the "
                    "model's acceleration across the vessel's axis out of every step (axis "
                    "from the wall's normals within about this many vessel radii), so the clot "
-                   "moves sideways only as the vessel turns and as it deforms (default 0: off)"
-                   )
+                   "moves sideways only as the vessel turns and as it deforms (default 0: off)")
     p.add_argument("--outlet-features", type=NN_FLOAT, help="tell clot nodes where the clot "
                    "is against the vessel's open ends, ahead of its motion (the vessel nodes "
                    "within about this many radii lie behind a node nearing the outlet), per "
@@ -161,10 +160,9 @@ def _add_train(sub) -> None:
     p.add_argument("--shape-features", type=NN_FLOAT, help="tell clot nodes their place "
                    "along the clot's motion and the clot's length and width, over this many "
                    "radii, so the step sees a stretched clot (default 0: off)")
-    p.add_argument("--clearance-features", type=NN_FLOAT, help="give every clot node the "
-                   "distance from the clot's centroid to the nearest vessel node, divided by "
-                   "this many radii: the vessel's width where the clot stands, which sets its "
-                   "speed (default 0: off)")
+    p.add_argument("--clearance-features", type=NN_FLOAT, help="give clot nodes the distance "
+                   "from the clot's centroid to the nearest vessel node, over this many radii "
+                   "(the vessel's width where the clot stands; default 0: off)")
     p.add_argument("--rest-edges", action="store_true", default=None, help="meshgraphnet: "
                    "give clot-clot edges their displacement in the clot's rest state (the "
                    "simulation's first frame) beside the current one, so the step sees strain")
@@ -206,8 +204,7 @@ def _run_train(args) -> int:
              "wall_clot_mean", "history_noise", "speed_noise", "direction_noise", "swell_noise",
              "stretch_noise", "time_scale", "clot_mean_weight", "wall_loss_weight", "select_by",
              "axis_features", "follow_axis", "lateral_hold", "outlet_features",
-             "shape_features", "clearance_features", "rest_edges", "init_from",
-             "init_which")
+             "shape_features", "clearance_features", "rest_edges", "init_from", "init_which")
     overrides = {k: getattr(args, k) for k in names if getattr(args, k) is not None}
     from thrombojax.train.recipes import DEFAULT_RECIPE, recipe
 

@@ -39,11 +39,8 @@ wall_signed=True)`` gives instead the signed distance to the wall and its outwar
 (:func:`thrombojax.graph.wall_nodes.signed_wall_features`), which tell a node that crossed the
 wall from one inside it; ``wall_clot_mean=True`` adds their clot-wide mean distance
 (:func:`thrombojax.graph.wall_nodes.clot_wall_mean`: the room the whole clot has).
-``make_step(model, clearance_radius=L)`` (``L > 0``, scaled) gives every clot node the distance
-from the clot's centroid to the nearest vessel node, divided by ``L``
-(:func:`thrombojax.graph.clearance.clot_clearance`): the vessel's width where the clot stands,
-which sets its speed, read through the centroid alone (guard corrections of single nodes hardly
-move it), with no wall features needed.
+``clearance_radius=L > 0`` gives clot nodes the distance from the clot's centroid to the
+nearest vessel node over ``L`` (:func:`thrombojax.graph.clearance.clot_clearance`).
 
 History: ``make_step(model, history=H)`` (``H >= 2``) also gives the model the accelerations of the
 ``H - 1`` steps before t, ``a_{t-j} = s_{t-j+1} - 2 s_{t-j} + s_{t-j-1}`` (in the step's frame,
@@ -160,9 +157,8 @@ class LearnedStep:
             clot's length and width (:func:`thrombojax.graph.clot_shape.clot_shape_features`,
             over this length, scaled); 0: off. (The order of all extra features:
             :mod:`thrombojax.simulator.features`.)
-        clearance_radius: > 0: clot nodes also get the distance from the clot's centroid to
-            the nearest vessel node divided by this length, scaled
-            (:func:`thrombojax.graph.clearance.clot_clearance`); 0: off.
+        clearance_radius: > 0: clot nodes also get the clot's clearance over this length,
+            scaled (:func:`thrombojax.graph.clearance.clot_clearance`); 0: off.
         rest_edges: the step also reads the clot's rest state (``x_prev`` led by the
             simulation's first frame, :mod:`thrombojax.simulator.previous`) and the model's
             edges get their rest-state displacement (a model that reads edge features only).
@@ -393,19 +389,12 @@ def make_step(model: Surrogate, frame: str = "global", wall_cutoff: float = 0.0,
               lateral_radius: float = 0.0, wall_clot_mean: bool = False,
               outlet_radius: float = 0.0, shape_radius: float = 0.0,
               rest_edges: bool = False, clearance_radius: float = 0.0) -> LearnedStep:
-    """The learned simulator of a surrogate in ``frame``, with wall features when
-    ``wall_cutoff > 0``, vessel-axis features when ``axis_radius > 0``, the vessel-following
-    prior when ``prior_radius > 0``, the lateral hold when ``lateral_radius > 0``, outlet
-    features when ``outlet_radius > 0``, clot shape features when ``shape_radius > 0``, the
-    clot's clearance when ``clearance_radius > 0``, the cell
-    ``grid`` where it pays, ``history`` previous frames and the rest state when ``rest_edges``
-    (module docstring, LearnedStep)."""
-    return LearnedStep(model=model, frame=frame, wall_cutoff=float(wall_cutoff), grid=grid,
-                       history=history, stop_history_gradient=bool(stop_history_gradient),
-                       wall_signed=bool(wall_signed), axis_radius=float(axis_radius),
-                       prior_radius=float(prior_radius),
-                       lateral_radius=float(lateral_radius),
-                       wall_clot_mean=bool(wall_clot_mean),
-                       outlet_radius=float(outlet_radius),
-                       shape_radius=float(shape_radius), rest_edges=bool(rest_edges),
-                       clearance_radius=float(clearance_radius))
+    """The learned simulator of a surrogate in ``frame`` with the options of
+    :class:`LearnedStep` (the radii are scaled lengths, 0: off; see the module docstring)."""
+    return LearnedStep(model=model, frame=frame, grid=grid, history=history,
+                       stop_history_gradient=bool(stop_history_gradient),
+                       wall_signed=bool(wall_signed), wall_clot_mean=bool(wall_clot_mean),
+                       rest_edges=bool(rest_edges), wall_cutoff=float(wall_cutoff),
+                       axis_radius=float(axis_radius), prior_radius=float(prior_radius),
+                       lateral_radius=float(lateral_radius), outlet_radius=float(outlet_radius),
+                       shape_radius=float(shape_radius), clearance_radius=float(clearance_radius))
