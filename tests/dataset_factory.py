@@ -230,6 +230,49 @@ def train_tiny_cli(tmp_path, *flags: str, n_nodes: int = 60):
     return data, run
 
 
+
+def check_cli_length_option(tmp_path, flag: str, value: float, field: str, radius: str) -> None:
+    """Train with ``flag value`` (a length in vessel radii; :func:`train_tiny_cli`) and check
+    that it reaches the run's ``TrainConfig.<field>``, the run config's ``radius`` (scaled
+    units, > 0) and the reloaded step's ``radius`` attribute: the step rolls out as it
+    trained."""
+    import pytest
+
+    from thrombojax.train.state import load_trained
+
+    _, run = train_tiny_cli(tmp_path, flag, str(value), n_nodes=80)
+    loaded = load_trained(run)
+    assert getattr(loaded.run.train, field) == value
+    assert loaded.config[radius] > 0
+    assert getattr(loaded.step, radius) == pytest.approx(loaded.config[radius])
+
+
+def check_step_input_option(prev, cur, nt, mask, option: str, value: float, width: int,
+                            expected, field: str, atol: float) -> None:
+    """A tiny MeshGraphNet step made with ``option=value`` reads ``width`` more inputs per node
+    than one without, and they are ``expected`` (``[N, width]``) on frames ``prev, cur``; a
+    negative value is refused by :func:`make_step` (naming ``option``) and by the training
+    options (``TrainConfig.<field>``)."""
+    import pytest
+
+    from thrombojax.errors import ConfigError
+    from thrombojax.models.registry import create_model, get_config, identity_stats
+    from thrombojax.simulator.step import make_step
+    from thrombojax.train.checks import check_train_values
+    from thrombojax.train.config import TrainConfig
+
+    model = create_model("mgn", get_config("mgn", tiny=True, max_neighbors=4))
+    plain, with_it = make_step(model), make_step(model, **{option: value})
+    kernels = [s.init(jax.random.key(0), prev, cur, nt, mask)["params"]["node_encoder"]
+               ["dense_0"]["kernel"].shape[0] for s in (plain, with_it)]
+    assert kernels[1] == kernels[0] + width
+    extra = np.asarray(with_it.inputs(identity_stats(), prev, cur, nt, mask).extra)
+    np.testing.assert_allclose(extra, np.asarray(expected), atol=atol)
+    with pytest.raises(ConfigError, match=option):
+        make_step(model, **{option: -1.0})
+    with pytest.raises(ConfigError, match=field.split("_")[0]):
+        check_train_values(TrainConfig(**{field: -1.0}))
+
 TRACES: list[int] = []  # FakeSurrogate appends here each time its graph is traced
 
 

@@ -2,15 +2,13 @@
 input (:func:`thrombojax.graph.clearance.clot_clearance`, ``make_step(...,
 clearance_radius=L)``, ``thrombojax train --clearance-features L``)."""
 
-import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from thrombojax.errors import ConfigError
 from thrombojax.graph.clearance import CLEARANCE_FEATURES, clot_clearance
-from thrombojax.models.registry import create_model, get_config, identity_stats
+from thrombojax.models.registry import create_model, get_config
 from thrombojax.simulator.step import make_step
 from thrombojax.types import NodeType, TargetStats
 
@@ -82,38 +80,22 @@ def test_clearance_is_invariant_to_rotations_and_translations_and_to_moving_sing
 def test_clearance_reaches_the_model_and_the_training_config():
     """A step with ``clearance_radius`` reads 1 more input per node, this feature; a negative
     length is refused by the step and by the training options."""
-    from thrombojax.train.checks import check_train_values
-    from thrombojax.train.config import TrainConfig
+    from dataset_factory import check_step_input_option
 
     frames, nt, mask = _clot_in_ring(np.random.default_rng(2), n_clot=24)
     prev, cur = jnp.asarray(frames[0]), jnp.asarray(frames[1])
-    model = create_model("mgn", get_config("mgn", tiny=True, max_neighbors=4))
-    plain, cleared = make_step(model), make_step(model, clearance_radius=0.5)
-    k0 = plain.init(jax.random.key(0), prev, cur, nt, mask)["params"]
-    k1 = cleared.init(jax.random.key(0), prev, cur, nt, mask)["params"]
-    assert (k1["node_encoder"]["dense_0"]["kernel"].shape[0]
-            == k0["node_encoder"]["dense_0"]["kernel"].shape[0] + CLEARANCE_FEATURES)
-    extra = np.asarray(cleared.inputs(identity_stats(), prev, cur, nt, mask).extra)
-    np.testing.assert_allclose(extra, np.asarray(clot_clearance(cur, nt, mask, scale=0.5)),
-                               atol=1e-6)
-    with pytest.raises(ConfigError, match="clearance_radius"):
-        make_step(model, clearance_radius=-1.0)
-    with pytest.raises(ConfigError, match="clearance"):
-        check_train_values(TrainConfig(clearance_features=-1.0))
+    check_step_input_option(prev, cur, nt, mask, "clearance_radius", 0.5, CLEARANCE_FEATURES,
+                            clot_clearance(cur, nt, mask, scale=0.5), "clearance_features",
+                            atol=1e-6)
 
 
 def test_cli_trains_with_clearance_features_and_reloads_the_step(tmp_path):
     """`--clearance-features` reaches the run's config (a length in scaled units) and the loaded
     model steps with it, as it trained."""
-    from dataset_factory import train_tiny_cli
+    from dataset_factory import check_cli_length_option
 
-    from thrombojax.train.state import load_trained
-
-    _, run = train_tiny_cli(tmp_path, "--clearance-features", "1", n_nodes=80)
-    loaded = load_trained(run)
-    assert loaded.run.train.clearance_features == 1.0
-    assert loaded.config["clearance_radius"] > 0
-    assert loaded.step.clearance_radius == pytest.approx(loaded.config["clearance_radius"])
+    check_cli_length_option(tmp_path, "--clearance-features", 1.0, "clearance_features",
+                            "clearance_radius")
 
 
 def _speed_change_error(clearance_radius: float) -> float:

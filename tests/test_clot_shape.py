@@ -1,15 +1,13 @@
 """The clot shape features: each clot node's place along the clot's motion, the clot's length
 and width (:func:`thrombojax.graph.clot_shape.clot_shape_features`)."""
 
-import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from thrombojax.errors import ConfigError
 from thrombojax.graph.clot_shape import CLOT_SHAPE_FEATURES, clot_shape_features
-from thrombojax.models.registry import create_model, get_config, identity_stats
+from thrombojax.models.registry import create_model, get_config
 from thrombojax.simulator.step import make_step
 from thrombojax.types import NodeType
 
@@ -77,38 +75,22 @@ def test_the_features_are_invariant_to_rotations_and_translations():
 def test_shape_features_reach_the_model_and_the_training_config():
     """A step with ``shape_radius`` reads 3 more inputs per node, these features; a negative
     length is refused by the step and by the training options."""
-    from thrombojax.train.checks import check_train_values
-    from thrombojax.train.config import TrainConfig
+    from dataset_factory import check_step_input_option
 
     x, nt, mask = _clot_and_ring(np.random.default_rng(2), n_clot=24)
     x = x / 10.0
     prev, cur = _moving(x, nt, mask, [0.02, 0.0, 0.0])
-    model = create_model("mgn", get_config("mgn", tiny=True, max_neighbors=4))
-    plain, shaped = make_step(model), make_step(model, shape_radius=0.1)
-    k0 = plain.init(jax.random.key(0), prev, cur, nt, mask)["params"]
-    k1 = shaped.init(jax.random.key(0), prev, cur, nt, mask)["params"]
-    assert (k1["node_encoder"]["dense_0"]["kernel"].shape[0]
-            == k0["node_encoder"]["dense_0"]["kernel"].shape[0] + CLOT_SHAPE_FEATURES)
-    extra = np.asarray(shaped.inputs(identity_stats(), prev, cur, nt, mask).extra)
-    np.testing.assert_allclose(extra, _features(prev, cur, nt, mask, scale=0.1), atol=1e-5)
-    with pytest.raises(ConfigError, match="shape_radius"):
-        make_step(model, shape_radius=-1.0)
-    with pytest.raises(ConfigError, match="shape"):
-        check_train_values(TrainConfig(shape_features=-1.0))
+    check_step_input_option(prev, cur, nt, mask, "shape_radius", 0.1, CLOT_SHAPE_FEATURES,
+                            _features(prev, cur, nt, mask, scale=0.1), "shape_features",
+                            atol=1e-5)
 
 
 def test_cli_trains_with_shape_features_and_reloads_the_step(tmp_path):
     """`--shape-features` reaches the run's config (a length in scaled units) and the loaded
     model steps with it, as it trained."""
-    from dataset_factory import train_tiny_cli
+    from dataset_factory import check_cli_length_option
 
-    from thrombojax.train.state import load_trained
-
-    _, run = train_tiny_cli(tmp_path, "--shape-features", "1", n_nodes=80)
-    loaded = load_trained(run)
-    assert loaded.run.train.shape_features == 1.0
-    assert loaded.config["shape_radius"] > 0
-    assert loaded.step.shape_radius == pytest.approx(loaded.config["shape_radius"])
+    check_cli_length_option(tmp_path, "--shape-features", 1.0, "shape_features", "shape_radius")
 
 
 def _stretch_carry_after_training(shape_radius: float) -> float:
