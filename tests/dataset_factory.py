@@ -230,7 +230,6 @@ def train_tiny_cli(tmp_path, *flags: str, n_nodes: int = 60):
     return data, run
 
 
-
 def check_cli_length_option(tmp_path, flag: str, value: float, field: str, radius: str) -> None:
     """Train with ``flag value`` (a length in vessel radii; :func:`train_tiny_cli`) and check
     that it reaches the run's ``TrainConfig.<field>``, the run config's ``radius`` (scaled
@@ -248,11 +247,11 @@ def check_cli_length_option(tmp_path, flag: str, value: float, field: str, radiu
 
 
 def check_step_input_option(prev, cur, nt, mask, option: str, value: float, width: int,
-                            expected, field: str, atol: float) -> None:
+                            expected, field: str, atol: float) -> np.ndarray:
     """A tiny MeshGraphNet step made with ``option=value`` reads ``width`` more inputs per node
     than one without, and they are ``expected`` (``[N, width]``) on frames ``prev, cur``; a
     negative value is refused by :func:`make_step` (naming ``option``) and by the training
-    options (``TrainConfig.<field>``)."""
+    options (``TrainConfig.<field>``). Returns the extra inputs."""
     import pytest
 
     from thrombojax.errors import ConfigError
@@ -272,6 +271,8 @@ def check_step_input_option(prev, cur, nt, mask, option: str, value: float, widt
         make_step(model, **{option: -1.0})
     with pytest.raises(ConfigError, match=field.split("_")[0]):
         check_train_values(TrainConfig(**{field: -1.0}))
+    return extra
+
 
 TRACES: list[int] = []  # FakeSurrogate appends here each time its graph is traced
 

@@ -1,6 +1,5 @@
 """The outlet features: where the clot is against the vessel's open ends, ahead of its motion."""
 
-import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
@@ -8,8 +7,6 @@ from scipy.spatial.transform import Rotation
 
 from thrombojax.errors import ConfigError
 from thrombojax.graph.vessel_axis import outlet_features
-from thrombojax.models.registry import create_model, get_config, identity_stats
-from thrombojax.simulator.step import make_step
 from thrombojax.types import NodeType
 
 ROT = Rotation.from_euler("xyz", [0.4, 2.1, -1.3]).as_matrix().astype(np.float32)
@@ -82,8 +79,10 @@ def test_the_features_are_invariant_to_rotations_and_translations():
 def test_outlet_features_reach_the_model_and_the_training_config():
     """A step with ``outlet_radius`` reads 2 more inputs per node, these features; a negative
     width is refused by the step and by the training options; they need the dense search."""
+    from dataset_factory import check_step_input_option
+
     from thrombojax.graph.wall_nodes import DENSE_PLANE_NODES
-    from thrombojax.train.checks import check_dense_inputs, check_train_values
+    from thrombojax.train.checks import check_dense_inputs
     from thrombojax.train.config import TrainConfig
 
     rng = np.random.default_rng(2)
@@ -91,19 +90,10 @@ def test_outlet_features_reach_the_model_and_the_training_config():
     x = x / 12.0
     prev, cur = _moving(x, nt, [0.02, 0.0, 0.0])
     mask = np.ones(len(nt), bool)
-    model = create_model("mgn", get_config("mgn", tiny=True, max_neighbors=4))
-    plain, outlet = make_step(model), make_step(model, outlet_radius=2.0 / 12.0)
-    k0 = plain.init(jax.random.key(0), prev, cur, nt, mask)["params"]
-    k1 = outlet.init(jax.random.key(0), prev, cur, nt, mask)["params"]
-    assert (k1["node_encoder"]["dense_0"]["kernel"].shape[0]
-            == k0["node_encoder"]["dense_0"]["kernel"].shape[0] + 2)
-    extra = np.asarray(outlet.inputs(identity_stats(), prev, cur, nt, mask).extra)
-    np.testing.assert_allclose(extra, _features(prev, cur, nt, radius=2.0 / 12.0), atol=1e-6)
+    extra = check_step_input_option(prev, cur, nt, mask, "outlet_radius", 2.0 / 12.0, 2,
+                                    _features(prev, cur, nt, radius=2.0 / 12.0),
+                                    "outlet_features", atol=1e-6)
     assert extra[nt == NodeType.CLOT, 1].min() < -0.01
-    with pytest.raises(ConfigError, match="outlet_radius"):
-        make_step(model, outlet_radius=-1.0)
-    with pytest.raises(ConfigError, match="outlet"):
-        check_train_values(TrainConfig(outlet_features=-1.0))
     with pytest.raises(ConfigError, match="--outlet-features"):
         check_dense_inputs(TrainConfig(outlet_features=2.0), DENSE_PLANE_NODES + 64)
 

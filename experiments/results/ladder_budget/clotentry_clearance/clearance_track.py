@@ -16,6 +16,8 @@ import json
 import pathlib
 import sys
 
+import jax
+import jax.numpy as jnp
 import numpy as np
 
 sys.path.insert(0, "experiments")
@@ -23,6 +25,7 @@ sys.path.insert(0, "experiments")
 from thrombojax import study  # noqa: E402
 from thrombojax.data.augment import subsample_indices  # noqa: E402
 from thrombojax.data.radius import vessel_radius  # noqa: E402
+from thrombojax.eval.drift import centroid_speed  # noqa: E402
 from thrombojax.eval.single_step import scaled_simulation  # noqa: E402
 from thrombojax.eval.tables import environment  # noqa: E402
 from thrombojax.graph.clearance import clot_clearance  # noqa: E402
@@ -54,13 +57,12 @@ def track(run: pathlib.Path, ds, name: str, n_nodes: int) -> dict:
     true = pos[skip:]
     clot = clot_mask(nt)
 
-    def clearance(frames):
-        return [float(np.asarray(clot_clearance(f, nt, mask, scale=r))[clot][0, 0])
-                for f in frames]
+    def clearance(frames):  # one compiled call over every frame
+        per_frame = jax.jit(jax.vmap(lambda f: clot_clearance(f, nt, mask, scale=r)))
+        return np.asarray(per_frame(jnp.asarray(frames)))[:, clot][:, 0, 0].tolist()
 
     def speed(frames):
-        c = frames[:, clot].mean(axis=1)
-        return (np.linalg.norm(np.diff(c, axis=0), axis=-1) / r).tolist()
+        return (centroid_speed(frames, clot) / r).tolist()
 
     return {"clearance_r": clearance(pred), "clearance_true_r": clearance(true),
             "speed_r": speed(pred), "speed_true_r": speed(true)}
