@@ -3,6 +3,7 @@
 A rollout with guards runs, inside its compiled ``lax.scan``::
 
     s_{t+1} = learned step (s_{t-1}, s_t)
+    s_{t+1} = centring(s_{t+1})      # off by default: the clot's centroid held near the middle
     s_{t+1} = coherence(s_{t+1})     # the clot keeps its shape within `tolerance` of a rigid copy
     s_{t+1} = contain(s_{t+1})       # clot nodes that crossed the rigid wall are put back inside
 
@@ -16,7 +17,8 @@ radii and converts with ``radius`` (one vessel radius in scaled coordinates). De
 containment on with a 0.01 r margin and 0.01 r tolerance (about the solver's contact
 penetration), coherence on with a 1 r tolerance (the true clot deviates from a rigid copy of its
 start by up to ~0.9 r in the built-in datasets, so coherence acts only on a clot that falls
-apart) and full stiffness.
+apart) and full stiffness. Centring (:func:`~thrombojax.simulator.centring.centre_clot`) is off
+unless a tolerance is given (``centring_r``).
 """
 
 from __future__ import annotations
@@ -27,6 +29,12 @@ import numpy as np
 from flax import struct
 
 from thrombojax.errors import ConfigError
+from thrombojax.simulator.centring import (
+    CENTRE_AXIS_R,
+    CENTRE_REACH_R,
+    CENTRE_SLAB_R,
+    centre_clot,
+)
 from thrombojax.simulator.guards import coherence, contain
 from thrombojax.simulator.wall import Wall
 from thrombojax.simulator.wall_build import wall_from_simulation
@@ -34,7 +42,7 @@ from thrombojax.types import NodeType
 
 __all__ = ["GuardSet", "build_guards", "GUARD_NAMES"]
 
-GUARD_NAMES: tuple[str, ...] = ("coherence", "containment")
+GUARD_NAMES: tuple[str, ...] = ("centring", "coherence", "containment")
 
 
 @struct.dataclass
@@ -49,6 +57,9 @@ class GuardSet:
         margin, tol: containment distances (scaled coordinates).
         coherence: apply :func:`~thrombojax.simulator.guards.coherence`.
         stiffness, tolerance: coherence settings (tolerance in scaled coordinates).
+        centring: apply :func:`~thrombojax.simulator.centring.centre_clot` first.
+        centre_tolerance, centre_lengths: its tolerance and ``(axis_radius, slab, reach)``
+            (scaled coordinates).
     """
 
     clot_index: jax.Array
@@ -60,6 +71,10 @@ class GuardSet:
     coherence: bool = struct.field(pytree_node=False, default=True)
     stiffness: float = struct.field(pytree_node=False, default=1.0)
     tolerance: float = struct.field(pytree_node=False, default=0.0)
+    centring: bool = struct.field(pytree_node=False, default=False)
+    centre_tolerance: float = struct.field(pytree_node=False, default=0.0)
+    centre_lengths: tuple[float, float, float] = struct.field(pytree_node=False,
+                                                              default=(1.0, 1.0, 1.0))
 
     def apply(self, x: jax.Array) -> tuple[jax.Array, dict[str, jax.Array]]:
         """Correct one frame ``x [N, 3]``; returns ``(x, {guard name: correction [N]})``.
@@ -71,6 +86,11 @@ class GuardSet:
         xc = x[idx]
         ones = jnp.ones(idx.shape[0], bool)
         corrections = {}
+        if self.centring:
+            axis_radius, slab, reach = self.centre_lengths
+            xc, moved = centre_clot(xc, self.wall, tolerance=self.centre_tolerance,
+                                    axis_radius=axis_radius, slab=slab, reach=reach)
+            corrections["centring"] = jnp.zeros(n, x.dtype).at[idx].set(moved)
         if self.coherence:
             xc, moved = coherence(xc, self.x_ref, ones, stiffness=self.stiffness,
                                   tolerance=self.tolerance)
@@ -95,6 +115,7 @@ def build_guards(
     tol_r: float = 0.01,
     stiffness: float = 1.0,
     tolerance_r: float = 1.0,
+    centring_r: float | None = None,
 ) -> GuardSet:
     """Build the guards of one rollout on the host.
 
@@ -111,6 +132,8 @@ def build_guards(
         containment, coherence: switch each guard.
         margin_r, tol_r: containment margin and tolerance, in vessel radii.
         stiffness: coherence stiffness in [0, 1]. tolerance_r: coherence tolerance in radii.
+        centring_r: the centring guard's tolerance in radii (>= 0; the clot's centroid may lie
+            this far from the middle of the vessel's cross-section); None: no centring.
     Returns:
         The :class:`GuardSet`.
     """
@@ -118,6 +141,8 @@ def build_guards(
         raise ConfigError(f"guards: the vessel radius must be > 0 (scaled units), got {radius}")
     if not 0.0 <= stiffness <= 1.0:
         raise ConfigError(f"guards: coherence stiffness must be in [0, 1], got {stiffness}")
+    if centring_r is not None and not centring_r >= 0:
+        raise ConfigError(f"guards: the centring tolerance must be >= 0 radii, got {centring_r}")
     clot = np.flatnonzero(np.asarray(node_type) == NodeType.CLOT).astype(np.int32)
     if clot.size == 0:
         raise ConfigError("guards: the rolled-out node set has no clot node")
@@ -129,5 +154,8 @@ def build_guards(
         x_ref=jnp.asarray(np.asarray(x_start, np.float32)[clot]),
         containment=bool(containment), margin=float(margin_r * radius),
         tol=float(tol_r * radius), coherence=bool(coherence), stiffness=float(stiffness),
-        tolerance=float(tolerance_r * radius),
+        tolerance=float(tolerance_r * radius), centring=centring_r is not None,
+        centre_tolerance=float((centring_r or 0.0) * radius),
+        centre_lengths=tuple(float(k * radius) for k in (CENTRE_AXIS_R, CENTRE_SLAB_R,
+                                                          CENTRE_REACH_R)),
     )
