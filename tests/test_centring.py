@@ -6,7 +6,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from wall_factory import bent_vessel, straight_tube
+from wall_factory import Outward, bent_vessel, straight_tube
 
 from thrombojax.errors import ConfigError
 from thrombojax.simulator.centring import centre_clot, section_centre
@@ -79,16 +79,10 @@ def test_no_centre_past_an_open_end():
 
 
 @dataclasses.dataclass(frozen=True)
-class Sideways:
+class Sideways(Outward):
     """A surrogate that accelerates every node across the tube (+y), 0.02 per step."""
 
     name: str = "sideways"
-
-    def build_graph(self, inputs):
-        return {}
-
-    def init(self, rng, inputs, graph):
-        return {}
 
     def apply(self, params, inputs, graph, *, train=False, rng=None):
         return jnp.broadcast_to(jnp.asarray([0.0, 0.02, 0.0]), inputs.positions.shape)
