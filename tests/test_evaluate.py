@@ -245,6 +245,26 @@ def test_rollout_guards_on_by_default_and_off_for_the_model_alone(tiny_run):
     assert all(v >= 0 for v in curves_on["guard_containment"])
 
 
+def test_rollout_centring_adds_the_centring_guard(tiny_run, capsys):
+    """--centring R turns the centring guard on beside the default guards, records R and the
+    guard's per-step correction; without the guards it is refused, naming both options."""
+    data, run, root = tiny_run
+    common = ["rollout", "--run", str(run), "--dataset", str(data), "--sim", "sim_1",
+              "--no-gif", "--quiet"]
+    assert main([*common, "--out", str(root / "centred"), "--centring", "0.15"]) == 0
+    rep = json.loads((root / "centred" / "rollout.json").read_text())
+    assert rep["guards"] and rep["centring_r"] == 0.15
+    curves = rep["simulations"]["sim_1"]["curves"]["mgn"]
+    assert {"guard_centring", "guard_containment", "guard_coherence"} <= set(curves)
+    assert all(v >= 0 for v in curves["guard_centring"])
+    assert "max_guard_centring" in rep["simulations"]["sim_1"]["summary"]["mgn"]
+    capsys.readouterr()
+    assert main([*common, "--out", str(root / "centred_alone"), "--no-guards",
+                 "--centring", "0.15"]) == 2
+    assert "--centring with --no-guards" in capsys.readouterr().err
+    assert not (root / "centred_alone").exists()
+
+
 def test_rollout_of_an_ensemble_reports_its_spread(tiny_run):
     """An ensemble folder rolls out as one program: mean prediction, spread beside the error."""
     from thrombojax.train.ensemble import train_ensemble

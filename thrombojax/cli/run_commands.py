@@ -284,9 +284,8 @@ def _run_evaluate(args) -> int:
 
 def _add_rollout(sub) -> None:
     p = sub.add_parser(
-        "rollout",
-        help="roll a trained run out: trajectory HDF5, ParaView series, GIF, error plots",
-        description=(
+        "rollout", help="roll a trained run out: trajectory HDF5, ParaView series, GIF, "
+        "error plots", description=(
             "Autoregressive rollout (one compiled jax.lax.scan) of a trained run on dataset "
             "simulations, starting after the dataset's skipped frames (its skip_frames attribute: "
             "5 BendVessel, 40 ClotEntry, as in the study). "
@@ -296,9 +295,7 @@ def _add_rollout(sub) -> None:
             "constant-velocity baseline), plus rollout.json and rollout.md (every error in "
             "scaled units and vessel radii, beside constant velocity). Any dataset in the run's "
             "length unit: by default the run's test split on its own dataset, every simulation "
-            "of another dataset."
-        ),
-    )
+            "of another dataset."))
     p.add_argument("--run", required=True, metavar="DIR", help="training run directory")
     p.add_argument("--dataset", required=True, metavar="FILE", help="dataset .h5 file")
     p.add_argument("--out", required=True, metavar="DIR", help="output folder")
@@ -319,6 +316,9 @@ def _add_rollout(sub) -> None:
     p.add_argument("--no-guards", action="store_true", help="roll the model out alone: no "
                    "containment in the vessel, no clot coherence (default: guards on, their "
                    "corrections reported)")
+    p.add_argument("--centring", type=NN_FLOAT, metavar="R", help="also the centring guard: "
+                   "the whole clot moved rigidly to within R vessel radii of the middle of "
+                   "the vessel's cross-section (default: off; ClotEntry: 0.15)")
     p.add_argument("--rotations", type=NN_INT, default=0, metavar="R",
                    help="a rotation ensemble: roll the model (every member of an ensemble) "
                    "out on R copies of each simulation, the first unturned, R - 1 turned by "
@@ -335,7 +335,7 @@ def _run_rollout(args) -> int:
                       which=args.checkpoint, skip=args.skip, n_steps=args.steps,
                       n_nodes=args.nodes, seed=args.seed, format=args.format,
                       gif=not args.no_gif, force=args.force, progress=not args.quiet,
-                      guards=not args.no_guards, rotations=args.rotations)
+                      guards=not args.no_guards, rotations=args.rotations, centring_r=args.centring)
     print(f"simulations: {res['selection']['how']}")
     print(res["table"], end="")
     print(f"wrote rollouts to {args.out}/")

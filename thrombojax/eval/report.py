@@ -35,6 +35,7 @@ from tqdm.auto import tqdm
 
 from thrombojax import study
 from thrombojax.data.scaling import Scaling
+from thrombojax.errors import ConfigError
 from thrombojax.eval.phases import PHASE_HELP
 from thrombojax.eval.physical import curves_in_radii, radius_units, summary_in_radii
 from thrombojax.eval.plots import animate_rollout, plot_error_curves, plot_rollout_metrics
@@ -175,6 +176,7 @@ def rollout_run(
     progress: bool = False,
     guards: bool = True,
     rotations: int = 0,
+    centring_r: float | None = None,
 ) -> dict:
     """Roll a trained run out on simulations of a dataset and write trajectories, plots, metrics.
 
@@ -206,10 +208,16 @@ def rollout_run(
             turned back; the prediction is the mean of them all and the spread is reported as
             for an ensemble.
             The single-step table stays that of the model(s) unturned.
+        centring_r: with the guards, also the centring guard: the whole clot moved rigidly to
+            within this many vessel radii of the middle of the vessel's cross-section
+            (:mod:`thrombojax.simulator.centring`; ``None``: off).
     Returns:
         JSON-ready summary (also written to ``rollout.json``; tables in ``rollout.md``, the one
         in vessel radii under ``table``).
     """
+    if centring_r is not None and not guards:
+        raise ConfigError("rollout: centring is a guard; it cannot run without the guards "
+                          "(--centring with --no-guards)")
     ensemble = (pathlib.Path(run_dir) / "ensemble.json").is_file()
     if ensemble:
         members = load_ensemble(run_dir, which=which)
@@ -247,7 +255,8 @@ def rollout_run(
                                  name=name, t0=max(skip, 1), n_steps=n_steps, n_nodes=n_nodes,
                                  seed=seed, wall_cells=sim.wall_cells,
                                  ensemble=n_members > 1 or bool(rotations),
-                                 guard_radius=1.0 / units.factor if guards else None)
+                                 guard_radius=1.0 / units.factor if guards else None,
+                                 centring_r=centring_r)
         check_finite({"predicted positions": float(np.sum(res.pred))},
                      f"{run_dir}: checkpoint '{which}' on simulation '{name}'")
         exit_at = simulation_exit_frame(pos, node_type, sim.wall_cells)
@@ -267,7 +276,7 @@ def rollout_run(
     result = {"model": trained.model.name, "run_dir": str(run_dir), "dataset": str(dataset_path),
               "selection": {"how": how, "simulations": names}, "skip": skip,
               "skip_frames": skip_frames, "seed": seed, "units": units.to_dict(),
-              "guards": bool(guards),
+              "guards": bool(guards), "centring_r": centring_r,
               "checkpoint": which, "ensemble_members": n_members, "rotations": int(rotations),
               "phase_definitions": PHASE_HELP, "date": env["date"], "environment": env,
               "simulations": report}

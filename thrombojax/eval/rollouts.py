@@ -89,6 +89,7 @@ def rollout_simulation(
     wall_cells: np.ndarray | None = None,
     guard_radius: float | None = None,
     ensemble: bool = False,
+    centring_r: float | None = None,
 ) -> RolloutResult:
     """Roll a model out on one simulation and measure it (scaled coordinates throughout).
 
@@ -110,6 +111,8 @@ def rollout_simulation(
         ensemble: ``params`` is a member-stacked pytree: the prediction is the ensemble mean
             and ``curves[model]["spread"]`` its mean per-step spread over clot nodes
             (:mod:`thrombojax.simulator.ensemble`); ``result.spread`` holds ``[n, N]``.
+        centring_r: with the guards, also the centring guard at this tolerance in vessel radii
+            (:mod:`thrombojax.simulator.centring`; ``None``: off); it needs ``guard_radius``.
     Returns:
         The :class:`RolloutResult`.
     """
@@ -120,6 +123,8 @@ def rollout_simulation(
                           f"({n_frames} frames)")
     max_steps = n_frames - 1 - t0
     n_steps = max_steps if n_steps is None else int(n_steps)
+    if centring_r is not None and guard_radius is None:
+        raise ConfigError(f"simulation '{name}': centring is a guard: it needs the guards on")
     if not 1 <= n_steps <= max_steps:
         raise ConfigError(f"simulation '{name}': n_steps {n_steps} must be in 1..{max_steps} from "
                           f"frame {t0}")
@@ -130,7 +135,8 @@ def rollout_simulation(
     x_prev = step.previous(positions, t0)[..., idx, :]  # the step's history
     mask = np.ones(idx.size, bool)
     guards = None if guard_radius is None else build_guards(
-        positions[0], node_type, x0, sub_type, radius=guard_radius, wall_cells=wall_cells)
+        positions[0], node_type, x0, sub_type, radius=guard_radius, wall_cells=wall_cells,
+        centring_r=centring_r)
     spread = None
     if ensemble:
         ens = ensemble_rollout(model, params, stats, x_prev, x0, sub_type, mask, n_steps,
