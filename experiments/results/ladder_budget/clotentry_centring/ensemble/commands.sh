@@ -23,3 +23,11 @@ echo '{"members": ["member_0", "member_1", "member_2", "member_3"], "seeds": [0,
 cd /work/main
 thrombojax rollout --run /work/exp/rm/ens4 --dataset data/clotentry.h5 --sim clotentry_008 \
   --sim clotentry_009 --checkpoint last --centring 0.15 --out /work/exp/ctr/cli_ens4_centre15
+# every three of the four as an ensemble, with centring (three/; run at nice 19 beside the
+# fresh-clone test suite, then alone)
+S0=/work/exp/rm/s0/follow_room30_last/run; S1=/work/exp/rm/s1/follow_room30_last/member_1/run
+S2=/work/exp/rm/s2/follow_room30_last/member_2/run; S3=/work/exp/rm/s3/follow_room30_last/member_3/run
+python $CE --nodes 2048 /work/exp/ctr/ens3 data/clotentry.h5 clotentry_008,clotentry_009 \
+  "ClotEntry, held out (the room recipe, every three of seeds 0-3 as an ensemble, with centring)" \
+  ens_123_centre15=$S1+$S2+$S3:guards,centring_r=0.15 ens_023_centre15=$S0+$S2+$S3:guards,centring_r=0.15 \
+  ens_013_centre15=$S0+$S1+$S3:guards,centring_r=0.15 ens_012_centre15=$S0+$S1+$S2:guards,centring_r=0.15
