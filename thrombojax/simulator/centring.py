@@ -38,7 +38,8 @@ import jax.numpy as jnp
 
 from thrombojax.simulator.wall import Wall, safe_norm
 
-__all__ = ["CENTRE_AXIS_R", "CENTRE_SLAB_R", "CENTRE_REACH_R", "section_centre", "centre_clot"]
+__all__ = ["CENTRE_AXIS_R", "CENTRE_SLAB_R", "CENTRE_REACH_R", "centre_lengths", "section_centre",
+           "centre_clot"]
 
 CENTRE_AXIS_R: float = 2.0
 """Width ``rho`` of the axis's Gaussian weights, in vessel radii (the wall all round ``c``)."""
@@ -46,6 +47,12 @@ CENTRE_SLAB_R: float = 0.5
 """Half-width ``h`` of the cross-section's Gaussian slab along the axis, in vessel radii."""
 CENTRE_REACH_R: float = 3.0
 """Wall elements farther than this from ``c`` (vessel radii) do not count."""
+
+
+def centre_lengths(radius: float) -> tuple[float, float, float]:
+    """``(axis_radius, slab, reach)`` of :func:`section_centre` for a vessel of ``radius``
+    (the module's ``CENTRE_*_R`` constants times it, in the wall's units)."""
+    return tuple(float(k * radius) for k in (CENTRE_AXIS_R, CENTRE_SLAB_R, CENTRE_REACH_R))
 
 
 def _elements(wall: Wall) -> tuple[jax.Array, jax.Array, jax.Array]:
@@ -92,19 +99,18 @@ def section_centre(
 
 def centre_clot(
     x: jax.Array, wall: Wall, *, tolerance: float, axis_radius: float, slab: float,
-    reach: float, stiffness: float = 1.0,
+    reach: float,
 ) -> tuple[jax.Array, jax.Array]:
     """Move the clot ``x [C, 3]`` (its real nodes only) rigidly toward the cross-section's middle.
 
     With ``e`` the offset of the clot's centroid from :func:`section_centre` (across the axis),
-    every node moves by ``-stiffness * (e - clip(e, tolerance))``: nothing while
+    every node moves by ``-(e - clip(e, tolerance))``: nothing while
     ``|e| <= tolerance``. Jittable, vmappable.
 
     Args:
         x: ``[C, 3]`` the clot's nodes (all real).
         wall: the rigid wall. tolerance: offset allowed without correction (>= 0).
         axis_radius, slab, reach: see :func:`section_centre`.
-        stiffness: in [0, 1], the part of the excess offset removed per call.
     Returns:
         ``(x_new [C, 3], correction [C])``: positions and how far each node moved.
     """
@@ -113,5 +119,5 @@ def centre_clot(
     off = c - centre
     norm = safe_norm(off)
     excess = off * jnp.maximum(1.0 - tolerance / jnp.maximum(norm, 1e-30), 0.0)
-    move = jnp.where(ok, -stiffness * excess, 0.0)
+    move = jnp.where(ok, -excess, 0.0)
     return x + move, jnp.broadcast_to(safe_norm(move), x.shape[:1])

@@ -29,12 +29,7 @@ import numpy as np
 from flax import struct
 
 from thrombojax.errors import ConfigError
-from thrombojax.simulator.centring import (
-    CENTRE_AXIS_R,
-    CENTRE_REACH_R,
-    CENTRE_SLAB_R,
-    centre_clot,
-)
+from thrombojax.simulator.centring import centre_clot, centre_lengths
 from thrombojax.simulator.guards import coherence, contain
 from thrombojax.simulator.wall import Wall
 from thrombojax.simulator.wall_build import wall_from_simulation
@@ -156,6 +151,5 @@ def build_guards(
         tol=float(tol_r * radius), coherence=bool(coherence), stiffness=float(stiffness),
         tolerance=float(tolerance_r * radius), centring=centring_r is not None,
         centre_tolerance=float((centring_r or 0.0) * radius),
-        centre_lengths=tuple(float(k * radius) for k in (CENTRE_AXIS_R, CENTRE_SLAB_R,
-                                                          CENTRE_REACH_R)),
+        centre_lengths=centre_lengths(radius),
     )

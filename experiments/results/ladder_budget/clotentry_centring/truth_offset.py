@@ -16,26 +16,18 @@ from the repository root::
 import argparse
 import json
 import pathlib
-import sys
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
-sys.path.insert(0, "experiments")
-
-from thrombojax.data.radius import vessel_radius  # noqa: E402
-from thrombojax.eval.tables import environment  # noqa: E402
-from thrombojax.io.hdf5 import open_dataset  # noqa: E402
-from thrombojax.io.outputs import atomic_write_text  # noqa: E402
-from thrombojax.simulator.centring import (  # noqa: E402
-    CENTRE_AXIS_R,
-    CENTRE_REACH_R,
-    CENTRE_SLAB_R,
-    section_centre,
-)
-from thrombojax.simulator.wall_build import wall_from_simulation  # noqa: E402
-from thrombojax.types import NodeType  # noqa: E402
+from thrombojax.data.radius import vessel_radius
+from thrombojax.eval.tables import environment
+from thrombojax.io.hdf5 import open_dataset
+from thrombojax.io.outputs import atomic_write_text
+from thrombojax.simulator.centring import centre_lengths, section_centre
+from thrombojax.simulator.wall_build import wall_from_simulation
+from thrombojax.types import NodeType
 
 
 def offsets(ds, name: str, r: float) -> tuple[np.ndarray, np.ndarray]:
@@ -46,9 +38,9 @@ def offsets(ds, name: str, r: float) -> tuple[np.ndarray, np.ndarray]:
     nt = np.asarray(sim.node_type)
     wall = wall_from_simulation(pos[0], nt, sim.wall_cells)
     cents = jnp.asarray(pos[:, nt == NodeType.CLOT].mean(axis=1))
+    axis_radius, slab, reach = centre_lengths(r)
     centre, _, ok = jax.jit(jax.vmap(lambda c: section_centre(
-        c, wall, axis_radius=CENTRE_AXIS_R * r, slab=CENTRE_SLAB_R * r,
-        reach=CENTRE_REACH_R * r)))(cents)
+        c, wall, axis_radius=axis_radius, slab=slab, reach=reach)))(cents)
     return np.linalg.norm(np.asarray(cents - centre), axis=-1) / r, np.asarray(ok)
 
 
