@@ -23,5 +23,5 @@ def test_cli_lists_only_working_subcommands(capsys):
     assert exit_info.value.code == 0
     out = capsys.readouterr().out
     for command in ("generate", "import", "info", "train", "evaluate", "rollout", "bench",
-                    "export"):
+                    "export", "ensemble", "experiment"):
         assert command in out

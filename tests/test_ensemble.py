@@ -365,3 +365,53 @@ def test_guard_mean_puts_the_mean_of_two_members_in_a_bend_back_inside():
     with pytest.raises(ConfigError, match="guard_mean needs"):
         ensemble_rollout(FakeSurrogate(), stack, stats, xa, xa, node_type, mask, 3,
                          rollout_fn=_fixed_frames, guard_mean=True)
+
+
+def test_join_ensemble_of_runs_trained_one_by_one(tiny_ensemble, tmp_path, capsys):
+    """Runs trained apart join into an ensemble folder that loads as the trained ensemble; the
+    runs are not touched, and every mistake is refused before anything is written."""
+    from thrombojax.cli import main
+    from thrombojax.train.ensemble import join_ensemble, load_ensemble
+
+    _, root, ens = tiny_ensemble
+    runs = [root / "ens" / "member_0", root / "ens" / "member_1"]
+    before = {p: p.read_bytes() for r in runs for p in sorted(r.rglob("*")) if p.is_file()}
+    joined = join_ensemble(runs, tmp_path / "joined", which="last")
+    manifest = json.loads((tmp_path / "joined" / "ensemble.json").read_text())
+    assert manifest["members"] == [str(r.resolve()) for r in runs] and manifest["seeds"] == [3, 4]
+    assert joined.seeds == [3, 4] and list(joined.directories) == [r.resolve() for r in runs]
+    again, trained = load_ensemble(tmp_path / "joined"), load_ensemble(root / "ens")
+    for a, b in zip(jax.tree.leaves(again.params), jax.tree.leaves(trained.params), strict=True):
+        assert np.array_equal(np.asarray(a), np.asarray(b))
+    assert {p: p.read_bytes() for r in runs for p in sorted(r.rglob("*")) if p.is_file()} == before
+    # mistakes: each refused, nothing written
+    bad = root / "join_bad_scaling"
+    shutil.copytree(runs[1], bad)
+    _edit_config(bad, lambda c: c["scaling"].update(scale=c["scaling"]["scale"] * 2))
+    cases = [([runs[0]], "two or more runs"), ([runs[0], runs[0]], "listed twice"),
+             ([runs[0], tmp_path], "not a training run"), ([runs[0], bad], "differs from "
+                                                           "member_0 in scaling")]
+    for i, (given, match) in enumerate(cases):
+        with pytest.raises(ConfigError, match=match):
+            join_ensemble(given, tmp_path / f"refused_{i}")
+        assert not (tmp_path / f"refused_{i}").exists()
+    with pytest.raises(ConfigError, match="inside the run"):
+        join_ensemble(runs, runs[0] / "ens")
+    with pytest.raises(ConfigError, match="trained ensemble members"):
+        join_ensemble(runs, root / "ens")
+    with pytest.raises(ConfigError, match="exists; pass force"):
+        join_ensemble(runs[::-1], tmp_path / "joined")
+    assert json.loads((tmp_path / "joined" / "ensemble.json").read_text()) == manifest
+    assert join_ensemble(runs[::-1], tmp_path / "joined", force=True).seeds == [4, 3]
+    twin = root / "join_twin"
+    shutil.copytree(runs[0], twin)
+    with pytest.warns(UserWarning, match="same seed 3"):
+        join_ensemble([runs[0], twin], tmp_path / "twins")
+    # the command line: the same join, then refused without --force (exit 2, one line)
+    capsys.readouterr()
+    out = tmp_path / "cli"
+    assert main(["ensemble", str(runs[0]), str(runs[1]), "--out", str(out)]) == 0
+    said = capsys.readouterr().out
+    assert "joined 2 mgn runs (seeds 3, 4)" in said and f"--run {out}" in said
+    assert main(["ensemble", str(runs[0]), str(runs[1]), "--out", str(out)]) == 2
+    assert "exists" in capsys.readouterr().err

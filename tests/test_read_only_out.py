@@ -14,7 +14,9 @@ import builtins
 import contextlib
 import errno
 import io
+import json
 import os
+import shutil
 from pathlib import Path
 
 import h5py
@@ -115,7 +117,12 @@ def inputs(tmp_path_factory):
     for t, frame in enumerate(sim.positions):
         meshio.write(series / f"frame_{t}.vtu",
                      meshio.Mesh(frame, [("tetra", sim.clot_cells), ("triangle", sim.wall_cells)]))
-    return {"DATA": str(data), "RUN": str(run), "SERIES": str(series)}
+    run2 = root / "run2"  # a second member for `ensemble`: the same run under another seed
+    shutil.copytree(run, run2)
+    config = json.loads((run2 / "config.json").read_text())
+    config["train"]["seed"] += 1
+    (run2 / "config.json").write_text(json.dumps(config))
+    return {"DATA": str(data), "RUN": str(run), "RUN2": str(run2), "SERIES": str(series)}
 
 
 COMMANDS = {
@@ -127,6 +134,7 @@ COMMANDS = {
     "rollout": ["rollout", "--run", "RUN", "--dataset", "DATA", "--out", "RO", "--steps", "2",
                 "--no-gif"],
     "export": ["export", "DATA", "--out", "RO"],
+    "ensemble": ["ensemble", "RUN", "RUN2", "--out", "RO"],
     "bench": ["bench", "--models", "mgn", "--cases", "bendvessel", "--tiny", "--nodes", "64",
               "--max-steps", "2", "--repeats", "1", "--out", "RO"],
 }

@@ -296,7 +296,7 @@ def _add_rollout(sub) -> None:
             "scaled units and vessel radii, beside constant velocity). Any dataset in the run's "
             "length unit: by default the run's test split on its own dataset, every simulation "
             "of another dataset."))
-    p.add_argument("--run", required=True, metavar="DIR", help="training run directory")
+    p.add_argument("--run", required=True, metavar="DIR", help="training run or ensemble folder")
     p.add_argument("--dataset", required=True, metavar="FILE", help="dataset .h5 file")
     p.add_argument("--out", required=True, metavar="DIR", help="output folder")
     p.add_argument("--sim", action="append", metavar="NAME",

@@ -10,7 +10,9 @@ member trains on the same simulations and has the same statistics), into::
 :func:`load_ensemble` loads every member with :func:`thrombojax.train.state.load_trained`, checks
 they share the model and its config, the statistics, the scaling and the split (a
 :class:`ConfigError` naming the member otherwise), and stacks their parameters for
-:func:`thrombojax.simulator.ensemble.ensemble_rollout`.
+:func:`thrombojax.simulator.ensemble.ensemble_rollout`. :func:`join_ensemble` makes an ensemble
+folder of runs trained one by one (``thrombojax ensemble``): its manifest lists their absolute
+paths, and nothing is written into the runs.
 """
 
 from __future__ import annotations
@@ -19,6 +21,7 @@ import dataclasses
 import json
 import pathlib
 import re
+import warnings
 from typing import Any
 
 from thrombojax.data.scaling import Scaling
@@ -33,7 +36,8 @@ from thrombojax.train.loop import train
 from thrombojax.train.state import TrainedModel, latest_step, load_trained
 from thrombojax.types import TargetStats
 
-__all__ = ["MANIFEST", "TrainedEnsemble", "member_dirs", "train_ensemble", "load_ensemble"]
+__all__ = ["MANIFEST", "TrainedEnsemble", "member_dirs", "train_ensemble", "load_ensemble",
+           "join_ensemble"]
 
 MANIFEST = "ensemble.json"
 _MEMBER = re.compile(r"^member_(\d+)$")
@@ -122,7 +126,8 @@ def train_ensemble(
 
 def member_dirs(ensemble_dir: str | pathlib.Path) -> list[pathlib.Path]:
     """The member run directories of an ensemble, in member order: those the manifest
-    (``ensemble.json``) lists, else every ``member_<i>`` folder sorted by ``i``."""
+    (``ensemble.json``) lists (relative to the folder, or absolute paths as
+    :func:`join_ensemble` writes them), else every ``member_<i>`` folder sorted by ``i``."""
     ensemble_dir = pathlib.Path(ensemble_dir)
     manifest = ensemble_dir / MANIFEST
     if manifest.is_file():
@@ -165,6 +170,11 @@ def load_ensemble(ensemble_dir: str | pathlib.Path, *, which: str = "best") -> T
     if not dirs:
         raise ConfigError(f"{ensemble_dir}: not an ensemble (no {MANIFEST} and no member_<i> "
                           "run directories)")
+    return _load_members(ensemble_dir, dirs, which)
+
+
+def _load_members(where: pathlib.Path, dirs: list[pathlib.Path], which: str) -> TrainedEnsemble:
+    """Load the runs ``dirs`` as one ensemble, checking that they differ only by seed."""
     members = []
     for d in dirs:
         if latest_step(d / "checkpoints" / which) is None:
@@ -181,8 +191,69 @@ def load_ensemble(ensemble_dir: str | pathlib.Path, *, which: str = "best") -> T
     try:
         params = stack_params([m.params for m in members])
     except ConfigError as err:
-        raise ConfigError(f"{ensemble_dir}: {err}") from err
+        raise ConfigError(f"{where}: {err}") from err
     first = members[0]
     return TrainedEnsemble(model=first.model, params=params, stats=first.stats,
                            scaling=first.scaling, run=first.run, split=first.split,
                            members=tuple(members), directories=tuple(dirs))
+
+
+def join_ensemble(runs: list[str | pathlib.Path], out_dir: str | pathlib.Path, *,
+                  which: str = "best", force: bool = False) -> TrainedEnsemble:
+    """Join runs trained one by one into an ensemble folder that ``thrombojax rollout`` reads.
+
+    The runs are checked as :func:`load_ensemble` checks members (the same model, model config,
+    statistics, scaling and split; a ``which`` checkpoint each) before anything is written.
+    Then ``out_dir/ensemble.json`` lists the runs' absolute paths and seeds; the runs
+    themselves are not touched and are not copied, so moving them breaks the ensemble.
+
+    Args:
+        runs: two or more run directories (``thrombojax train --out``), in member order.
+        out_dir: the ensemble folder (made if missing).
+        which: the checkpoint every run must have (``"best"`` or ``"last"``); a rollout may
+            still ask for the other one.
+        force: replace an existing ``ensemble.json`` in ``out_dir``.
+    Returns:
+        The joined :class:`TrainedEnsemble` (``which`` checkpoints).
+    Raises:
+        ConfigError: fewer than two runs, a run listed twice, a path that is not a run, runs
+            that differ in more than the seed, an ``out_dir`` inside a run or holding trained
+            members, or an existing manifest without ``force``.
+    """
+    dirs = [pathlib.Path(r).resolve() for r in runs]
+    out_dir = pathlib.Path(out_dir).resolve()
+    if len(dirs) < 2:
+        raise ConfigError(f"join_ensemble: an ensemble needs two or more runs, got {len(dirs)}")
+    for i, d in enumerate(dirs):
+        if not (d / "config.json").is_file():
+            raise ConfigError(f"{d}: not a training run (no config.json)")
+        if d in dirs[:i]:
+            raise ConfigError(f"{d}: listed twice; each run joins the ensemble once")
+        if out_dir == d or d in out_dir.parents:
+            raise ConfigError(f"{out_dir}: inside the run {d}; the ensemble folder must not be "
+                              "written into a run")
+    if (out_dir / "config.json").is_file() or _holds_members(out_dir):
+        raise ConfigError(f"{out_dir}: holds a run or trained ensemble members; join into a "
+                          "new folder")
+    manifest = out_dir / MANIFEST
+    if manifest.exists() and not force:
+        raise ConfigError(f"{manifest} exists; pass force=True (--force) to replace it")
+    ens = _load_members(out_dir, dirs, which)
+    seen: dict[int, pathlib.Path] = {}
+    for d, seed in zip(dirs, ens.seeds, strict=True):
+        if seed in seen:
+            warnings.warn(f"{d} and {seen[seed]} were trained with the same seed {seed}: "
+                          "on the same data they are the same model and add no spread",
+                          stacklevel=2)
+        seen.setdefault(seed, d)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    atomic_write_text(manifest, json.dumps({
+        "members": [str(d) for d in dirs], "seeds": ens.seeds, "model": ens.run.model,
+        "dataset": ens.run.dataset, "joined": True, "checked_checkpoint": which}, indent=2))
+    return ens
+
+
+def _holds_members(folder: pathlib.Path) -> bool:
+    """Whether ``folder`` holds ``member_<i>`` run directories (an ensemble trained there)."""
+    return folder.is_dir() and any(p.is_dir() and _MEMBER.match(p.name)
+                                   and (p / "config.json").is_file() for p in folder.iterdir())
