@@ -119,3 +119,56 @@ def test_a_negative_centring_tolerance_is_refused():
     x0, node_type = straight_tube()
     with pytest.raises(ConfigError, match="centring tolerance"):
         build_guards(x0, node_type, x0, node_type, radius=1.0, centring_r=-0.1)
+
+
+def _tube_sim(offsets):
+    """A straight-tube 'simulation' whose clot's centroid lies ``offsets[t]`` off the axis in
+    frame t (the clot moved sideways rigidly), plus each frame's true offset."""
+    from types import SimpleNamespace
+
+    x0, node_type = straight_tube()
+    clot = node_type == NodeType.CLOT
+    x0[clot] -= np.float32([0.0, *x0[clot].mean(axis=0)[1:]])  # the clot's centroid on the axis
+    frames = np.repeat(x0[None], len(offsets), axis=0)
+    frames[:, clot, 1] += np.float32(offsets)[:, None]
+    truth = np.linalg.norm(frames[:, clot].mean(axis=1)[:, 1:], axis=-1)
+    return SimpleNamespace(positions=frames, node_type=node_type, wall_cells=None), truth
+
+
+def test_fit_centring_is_the_quantile_of_the_true_offsets():
+    """The tolerance fitted on a set of simulations is the chosen quantile of their clots'
+    offsets from the middle: small where the clots keep to the middle, wide where they run
+    along the wall (then the guard hardly acts); no usable frame is an error."""
+    from types import SimpleNamespace
+
+    from thrombojax.errors import DatasetError
+    from thrombojax.eval.centring_fit import centroid_offsets, fit_centring
+
+    middle, truth_a = _tube_sim(np.linspace(0.0, 0.1, 21))
+    wall_hugging, truth_b = _tube_sim(np.linspace(0.3, 0.6, 21))
+    offset, ok = centroid_offsets(middle.positions, middle.node_type, None, 1.0)
+    assert ok.all()
+    np.testing.assert_allclose(offset, truth_a, atol=0.03)
+    sims = {"a": middle, "b": wall_hugging}
+    ds = type("DS", (), {"path": "fake.h5", "__getitem__": lambda self, n: sims[n]})()
+    fit = fit_centring(ds, ["a"], 1.0)
+    assert fit["frames"] == 21 and fit["simulations"] == ["a"] and fit["quantile"] == 0.95
+    assert abs(fit["centring_r"] - np.quantile(truth_a, 0.95)) < 0.03
+    both = fit_centring(ds, ["a", "b"], 1.0, quantile=0.5)
+    assert abs(both["centring_r"] - np.quantile(np.r_[truth_a, truth_b], 0.5)) < 0.03
+    assert fit_centring(ds, ["b"], 1.0)["centring_r"] > 0.5 > 0.12 > fit["centring_r"]
+    # scale: the same tube twice as large, radius 2: the same tolerance in radii
+    big = SimpleNamespace(positions=middle.positions * 2, node_type=middle.node_type,
+                          wall_cells=None)
+    ds_big = type("DS", (), {"path": "big.h5", "__getitem__": lambda self, n: big})()
+    assert abs(fit_centring(ds_big, ["a"], 2.0)["centring_r"] - fit["centring_r"]) < 1e-4
+    with pytest.raises(DatasetError, match="fake.h5: no simulations"):
+        fit_centring(ds, [], 1.0)
+    with pytest.raises(DatasetError, match="quantile"):
+        fit_centring(ds, ["a"], 1.0, quantile=0.0)
+    off_end = SimpleNamespace(positions=middle.positions + np.float32([5.0, 0, 0]) *
+                              (middle.node_type == NodeType.CLOT)[:, None],
+                              node_type=middle.node_type, wall_cells=None)
+    ds_end = type("DS", (), {"path": "end.h5", "__getitem__": lambda self, n: off_end})()
+    with pytest.raises(DatasetError, match="end.h5: simulations a: no frame"):
+        fit_centring(ds_end, ["a"], 1.0)

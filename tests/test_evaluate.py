@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import shutil
 
 import numpy as np
 import pytest
@@ -316,3 +317,37 @@ def test_train_members_cli_makes_an_ensemble(tiny_run, capsys):
                  "--n-val", "1", "--batch-size", "2", "--warmup-epochs", "0", "--quiet"]) == 0
     assert "ensemble of 2 mgn members" in capsys.readouterr().out
     assert (root / "cli_ens" / "ensemble.json").is_file()
+
+
+def test_rollout_centring_auto_fits_the_tolerance_on_the_training_simulations(tiny_run,
+                                                                              capsys):
+    """--centring auto: the tolerance is fitted on the run's training simulations of its own
+    dataset (recorded with the fit), the same as fit_centring gives; a run whose dataset has
+    gone is refused with a message that names it and asks for a number."""
+    from thrombojax.data.radius import vessel_radius
+    from thrombojax.eval.centring_fit import fit_centring
+    from thrombojax.io.hdf5 import open_dataset
+    from thrombojax.train.state import load_trained
+
+    data, run, root = tiny_run
+    common = ["rollout", "--dataset", str(data), "--sim", "sim_1", "--no-gif", "--quiet"]
+    assert main([*common, "--run", str(run), "--out", str(root / "auto"), "--centring",
+                 "auto"]) == 0
+    rep = json.loads((root / "auto" / "rollout.json").read_text())
+    trained = load_trained(run)
+    ds = open_dataset(data)
+    want = fit_centring(ds, trained.split.train, float(vessel_radius(ds)))
+    assert rep["centring_fit"] == want and rep["centring_r"] == want["centring_r"] > 0
+    assert rep["centring_fit"]["simulations"] == list(trained.split.train)
+    assert "max_guard_centring" in rep["simulations"]["sim_1"]["summary"]["mgn"]
+    moved = root / "run_elsewhere"
+    shutil.copytree(run, moved)
+    config = json.loads((moved / "config.json").read_text())
+    config["dataset"] = str(root / "gone.h5")
+    (moved / "config.json").write_text(json.dumps(config))
+    capsys.readouterr()
+    assert main([*common, "--run", str(moved), "--out", str(root / "auto_gone"),
+                 "--centring", "auto"]) == 2
+    err = capsys.readouterr().err
+    assert "gone.h5" in err and "give --centring a number" in err
+    assert not (root / "auto_gone").exists()

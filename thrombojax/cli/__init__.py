@@ -3,9 +3,10 @@
 Errors that thrombojax raises on purpose (:class:`thrombojax.errors.ThrombojaxError`) and
 missing files are printed as one line and exit with status 2, never as a traceback. The
 subcommands live in :mod:`.data_commands` (info, import, generate, export),
-:mod:`.run_commands` (train, evaluate, rollout, bench), :mod:`.ensemble_commands` (ensemble)
-and :mod:`.experiment_commands` (experiment list / run); library imports happen inside each
-command so ``thrombojax --help`` stays fast. :mod:`.allocator` runs the command under tcmalloc.
+:mod:`.run_commands` (train, evaluate, rollout), :mod:`.bench_commands` (bench),
+:mod:`.ensemble_commands` (ensemble) and :mod:`.experiment_commands` (experiment list / run);
+library imports happen inside each command so ``thrombojax --help`` stays fast.
+:mod:`.allocator` runs the command under tcmalloc.
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ from collections.abc import Sequence
 
 from thrombojax.cli import (
     allocator,
+    bench_commands,
     data_commands,
     ensemble_commands,
     experiment_commands,
@@ -26,7 +28,7 @@ from thrombojax.errors import ThrombojaxError
 
 __all__ = ["main", "build_parser"]
 
-_REGISTRARS = [*data_commands.REGISTRARS, *run_commands.REGISTRARS,
+_REGISTRARS = [*data_commands.REGISTRARS, *run_commands.REGISTRARS, *bench_commands.REGISTRARS,
                *ensemble_commands.REGISTRARS, *experiment_commands.REGISTRARS]
 
 

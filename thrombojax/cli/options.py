@@ -16,6 +16,7 @@ __all__ = [
     "float_at_least",
     "float_above",
     "angle",
+    "centring",
     "NN_INT",
     "POS_INT",
     "NN_FLOAT",
@@ -80,6 +81,11 @@ def angle(text: str) -> float:
     if not math.isfinite(value) or value < 0:
         raise argparse.ArgumentTypeError(f"must be a finite angle >= 0, got {text!r}")
     return value
+
+
+def centring(text: str) -> float | str:
+    """``auto`` or a tolerance in vessel radii ``>= 0`` (``thrombojax rollout --centring``)."""
+    return "auto" if text == "auto" else float_at_least(0.0)(text)
 
 
 # argument types: numbers are checked (finite, in range) when the flags are parsed

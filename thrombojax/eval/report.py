@@ -176,7 +176,7 @@ def rollout_run(
     progress: bool = False,
     guards: bool = True,
     rotations: int = 0,
-    centring_r: float | None = None,
+    centring_r: float | str | None = None,
 ) -> dict:
     """Roll a trained run out on simulations of a dataset and write trajectories, plots, metrics.
 
@@ -210,7 +210,10 @@ def rollout_run(
             The single-step table stays that of the model(s) unturned.
         centring_r: with the guards, also the centring guard: the whole clot moved rigidly to
             within this many vessel radii of the middle of the vessel's cross-section
-            (:mod:`thrombojax.simulator.centring`; ``None``: off).
+            (:mod:`thrombojax.simulator.centring`; ``None``: off). ``"auto"``: the tolerance
+            that leaves 95 % of the true clots' frames of the run's training simulations alone
+            (:func:`thrombojax.eval.centring_fit.fit_centring` on the run's own dataset),
+            recorded under ``centring_fit``.
     Returns:
         JSON-ready summary (also written to ``rollout.json``; tables in ``rollout.md``, the one
         in vessel radii under ``table``).
@@ -238,6 +241,10 @@ def rollout_run(
     skip_frames = study.skip_frames(ds)
     skip = skip_frames if skip is None else int(skip)
     n_nodes = n_nodes or trained.run.train.nodes_per_sample
+    centring_fit = None
+    if centring_r == "auto":
+        centring_fit = _auto_centring(trained, ds, dataset_path, run_dir)
+        centring_r = centring_fit["centring_r"]
     out_dir = pathlib.Path(out_dir)
     stems = safe_stems(names)
     targets = [f for n in names for f in rollout_files(out_dir, stems[n], format, gif)]
@@ -276,7 +283,7 @@ def rollout_run(
     result = {"model": trained.model.name, "run_dir": str(run_dir), "dataset": str(dataset_path),
               "selection": {"how": how, "simulations": names}, "skip": skip,
               "skip_frames": skip_frames, "seed": seed, "units": units.to_dict(),
-              "guards": bool(guards), "centring_r": centring_r,
+              "guards": bool(guards), "centring_r": centring_r, "centring_fit": centring_fit,
               "checkpoint": which, "ensemble_members": n_members, "rotations": int(rotations),
               "phase_definitions": PHASE_HELP, "date": env["date"], "environment": env,
               "simulations": report}
@@ -285,3 +292,20 @@ def rollout_run(
     atomic_write_text(out_dir / "rollout.md", markdown)
     result["table"] = table
     return result
+
+
+def _auto_centring(trained, ds, dataset_path, run_dir) -> dict:
+    """``--centring auto``: fit the tolerance on the run's training simulations, read from the
+    run's own dataset (``ds`` when that is the dataset being rolled out)."""
+    from thrombojax.data.radius import vessel_radius
+    from thrombojax.eval.centring_fit import fit_centring
+
+    own = pathlib.Path(trained.run.dataset)
+    if own.is_file() and own.resolve() == pathlib.Path(dataset_path).resolve():
+        train_ds = ds
+    elif own.is_file():
+        train_ds = open_dataset(own)
+    else:
+        raise ConfigError(f"{run_dir}: --centring auto measures the run's training simulations "
+                          f"in its dataset {own}, which is not there; give --centring a number")
+    return fit_centring(train_ds, trained.split.train, float(vessel_radius(train_ds)))

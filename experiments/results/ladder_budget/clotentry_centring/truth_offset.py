@@ -2,11 +2,12 @@
 
 For every frame of the chosen simulations, the offset (across the local axis, vessel radii) of
 the true clot's centroid from ``thrombojax.simulator.centring.section_centre`` on the full
-simulation's rigid wall (its triangles when it has them): the centring guard's tolerance is
-picked from the training simulations' largest offset where the section has a centre (not
-at an open end, where the guard stands aside), so that it would never move a true clot of
-them. Writes ``OUT.json`` (every frame) and ``OUT.md`` (per simulation: the frames
-without a centre, and the median, 95th percentile and largest offset of the others). Run
+simulation's rigid wall (its triangles when it has them;
+``thrombojax.eval.centring_fit.centroid_offsets``): the centring guard's tolerance is picked
+from the training simulations' largest offset where the section has a centre (not at an open
+end, where the guard stands aside), so that it would never move a true clot of them. Writes
+``OUT.json`` (every frame) and ``OUT.md`` (per simulation: the frames without a centre, and the
+median, 95th percentile and largest offset of the others). Run
 from the repository root::
 
     python experiments/results/ladder_budget/clotentry_centring/truth_offset.py \\
@@ -17,31 +18,20 @@ import argparse
 import json
 import pathlib
 
-import jax
-import jax.numpy as jnp
 import numpy as np
 
 from thrombojax.data.radius import vessel_radius
+from thrombojax.eval.centring_fit import centroid_offsets
 from thrombojax.eval.tables import environment
 from thrombojax.io.hdf5 import open_dataset
 from thrombojax.io.outputs import atomic_write_text
-from thrombojax.simulator.centring import centre_lengths, section_centre
-from thrombojax.simulator.wall_build import wall_from_simulation
-from thrombojax.types import NodeType
 
 
 def offsets(ds, name: str, r: float) -> tuple[np.ndarray, np.ndarray]:
     """``([T] offset, [T] ok)``: the true centroid's offset from the section's middle (vessel
     radii), and whether the section has a middle there (not at an open end)."""
     sim = ds[name]
-    pos = np.asarray(sim.positions, np.float32)
-    nt = np.asarray(sim.node_type)
-    wall = wall_from_simulation(pos[0], nt, sim.wall_cells)
-    cents = jnp.asarray(pos[:, nt == NodeType.CLOT].mean(axis=1))
-    axis_radius, slab, reach = centre_lengths(r)
-    centre, _, ok = jax.jit(jax.vmap(lambda c: section_centre(
-        c, wall, axis_radius=axis_radius, slab=slab, reach=reach)))(cents)
-    return np.linalg.norm(np.asarray(cents - centre), axis=-1) / r, np.asarray(ok)
+    return centroid_offsets(sim.positions, sim.node_type, sim.wall_cells, r)
 
 
 def main() -> None:
