@@ -241,15 +241,15 @@ def rollout_run(
     skip_frames = study.skip_frames(ds)
     skip = skip_frames if skip is None else int(skip)
     n_nodes = n_nodes or trained.run.train.nodes_per_sample
-    centring_fit = None
-    if centring_r == "auto":
-        centring_fit = _auto_centring(trained, ds, dataset_path, run_dir)
-        centring_r = centring_fit["centring_r"]
     out_dir = pathlib.Path(out_dir)
     stems = safe_stems(names)
     targets = [f for n in names for f in rollout_files(out_dir, stems[n], format, gif)]
     check_targets([*targets, out_dir / "rollout.json", out_dir / "rollout.md"],
                   inputs=(dataset_path,), force=force, what="rollout output")
+    centring_fit = None
+    if centring_r == "auto":
+        centring_fit = _auto_centring(trained, ds, dataset_path, run_dir)
+        centring_r = centring_fit["centring_r"]
     units = radius_units(trained.scaling, ds)
     out_dir.mkdir(parents=True, exist_ok=True)
     report = {}

@@ -186,7 +186,8 @@ def _load_members(where: pathlib.Path, dirs: list[pathlib.Path], which: str) -> 
         sig = _signature(member)
         differ = [k for k in ref if sig[k] != ref[k]]
         if differ:
-            raise ConfigError(f"{d}: ensemble member differs from {dirs[0].name} in "
+            first = dirs[0].name if dirs[0].parent == d.parent else dirs[0]
+            raise ConfigError(f"{d}: ensemble member differs from {first} in "
                               f"{', '.join(differ)}; members must differ only by seed")
     try:
         params = stack_params([m.params for m in members])
