@@ -83,14 +83,14 @@ def angle(text: str) -> float:
     return value
 
 
-def centring(text: str) -> float | str:
-    """``auto`` or a tolerance in vessel radii ``>= 0`` (``thrombojax rollout --centring``)."""
-    return "auto" if text == "auto" else float_at_least(0.0)(text)
-
-
 # argument types: numbers are checked (finite, in range) when the flags are parsed
 NN_INT, POS_INT = int_at_least(0), int_at_least(1)
 NN_FLOAT, POS_FLOAT = float_at_least(0.0), float_above(0.0)
+
+
+def centring(text: str) -> float | str:
+    """``auto`` or a tolerance in vessel radii ``>= 0`` (``thrombojax rollout --centring``)."""
+    return "auto" if text == "auto" else NN_FLOAT(text)
 
 
 def output_flags(p, force_help: str) -> None:

@@ -292,8 +292,9 @@ def _run_evaluate(args) -> int:
 
 def _add_rollout(sub) -> None:
     p = sub.add_parser(
-        "rollout", help="roll a trained run out: trajectory HDF5, ParaView series, GIF, "
-        "error plots", description=(
+        "rollout",
+        help="roll a trained run out: trajectory HDF5, ParaView series, GIF, error plots",
+        description=(
             "Autoregressive rollout (one compiled jax.lax.scan) of a trained run on dataset "
             "simulations, starting after the dataset's skipped frames (its skip_frames attribute: "
             "5 BendVessel, 40 ClotEntry, as in the study). "
@@ -303,7 +304,9 @@ def _add_rollout(sub) -> None:
             "constant-velocity baseline), plus rollout.json and rollout.md (every error in "
             "scaled units and vessel radii, beside constant velocity). Any dataset in the run's "
             "length unit: by default the run's test split on its own dataset, every simulation "
-            "of another dataset."))
+            "of another dataset."
+        ),
+    )
     p.add_argument("--run", required=True, metavar="DIR", help="training run or ensemble folder")
     p.add_argument("--dataset", required=True, metavar="FILE", help="dataset .h5 file")
     p.add_argument("--out", required=True, metavar="DIR", help="output folder")

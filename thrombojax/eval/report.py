@@ -34,8 +34,10 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from thrombojax import study
+from thrombojax.data.radius import vessel_radius
 from thrombojax.data.scaling import Scaling
 from thrombojax.errors import ConfigError
+from thrombojax.eval.centring_fit import fit_centring
 from thrombojax.eval.phases import PHASE_HELP
 from thrombojax.eval.physical import curves_in_radii, radius_units, summary_in_radii
 from thrombojax.eval.plots import animate_rollout, plot_error_curves, plot_rollout_metrics
@@ -297,9 +299,6 @@ def rollout_run(
 def _auto_centring(trained, ds, dataset_path, run_dir) -> dict:
     """``--centring auto``: fit the tolerance on the run's training simulations, read from the
     run's own dataset (``ds`` when that is the dataset being rolled out)."""
-    from thrombojax.data.radius import vessel_radius
-    from thrombojax.eval.centring_fit import fit_centring
-
     own = pathlib.Path(trained.run.dataset)
     if own.is_file() and own.resolve() == pathlib.Path(dataset_path).resolve():
         train_ds = ds
