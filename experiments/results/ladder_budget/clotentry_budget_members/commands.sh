@@ -30,3 +30,8 @@ M=/work/exp/ce4; P=/work/exp/ce3; E=$M/s13+$M/s14+$M/s15+$M/s16
 python $CE --nodes 2048 /work/exp/ce4/heldout data/clotentry.h5 clotentry_008,clotentry_009 \
   "ClotEntry, held out (the room recipe: four 2-epoch seeds trained side by side as one ensemble, one rung's 30 minutes)" \
   e4_2ep_guards=$E:guards e7_2ep_guards=$P/s10+$P/s11+$P/s12+$E:guards
+# 3. the same two ensembles with centring at 0.15 r (beside a fresh-clone `make test`)
+python $CE --nodes 2048 /work/exp/ce4/heldout data/clotentry.h5 clotentry_008,clotentry_009 \
+  "ClotEntry, held out (the room recipe: four 2-epoch seeds trained side by side as one ensemble, one rung's 30 minutes)" \
+  e4_2ep_guards=$E:guards e7_2ep_guards=$P/s10+$P/s11+$P/s12+$E:guards \
+  e4_2ep_centre15=$E:guards,centring_r=0.15 e7_2ep_centre15=$P/s10+$P/s11+$P/s12+$E:guards,centring_r=0.15
