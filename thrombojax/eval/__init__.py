@@ -10,6 +10,8 @@ Modules: :mod:`~thrombojax.eval.metrics` (errors, centroid, containment),
 history gain),
 :mod:`~thrombojax.eval.track` (a rollout's centroid error along and across the true track, its
 clot's size against the truth's),
+:mod:`~thrombojax.eval.pace_fit` (a factor on the learned steps fitted on validation
+simulations so that the clot ends on the true one along its track),
 :mod:`~thrombojax.eval.report` (``thrombojax rollout``: trajectories, ParaView files, plots),
 :mod:`~thrombojax.eval.plots` (matplotlib figures and animations),
 :mod:`~thrombojax.eval.bench` (rollout speed, ``thrombojax bench``) and

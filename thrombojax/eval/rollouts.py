@@ -90,6 +90,7 @@ def rollout_simulation(
     guard_radius: float | None = None,
     ensemble: bool = False,
     centring_r: float | None = None,
+    pace: float | None = None,
 ) -> RolloutResult:
     """Roll a model out on one simulation and measure it (scaled coordinates throughout).
 
@@ -113,6 +114,9 @@ def rollout_simulation(
             (:mod:`thrombojax.simulator.ensemble`); ``result.spread`` holds ``[n, N]``.
         centring_r: with the guards, also the centring guard at this tolerance in vessel radii
             (:mod:`thrombojax.simulator.centring`; ``None``: off); it needs ``guard_radius``.
+        pace: with the guards, every clot node's learned step times this factor before they
+            act (:meth:`thrombojax.simulator.guard_set.GuardSet.pace_step`; ``None``: off); it
+            needs ``guard_radius``.
     Returns:
         The :class:`RolloutResult`.
     """
@@ -125,6 +129,8 @@ def rollout_simulation(
     n_steps = max_steps if n_steps is None else int(n_steps)
     if centring_r is not None and guard_radius is None:
         raise ConfigError(f"simulation '{name}': centring is a guard: it needs the guards on")
+    if pace is not None and guard_radius is None:
+        raise ConfigError(f"simulation '{name}': pace acts with the guards: it needs them on")
     if not 1 <= n_steps <= max_steps:
         raise ConfigError(f"simulation '{name}': n_steps {n_steps} must be in 1..{max_steps} from "
                           f"frame {t0}")
@@ -136,7 +142,7 @@ def rollout_simulation(
     mask = np.ones(idx.size, bool)
     guards = None if guard_radius is None else build_guards(
         positions[0], node_type, x0, sub_type, radius=guard_radius, wall_cells=wall_cells,
-        centring_r=centring_r)
+        centring_r=centring_r, pace=pace)
     spread = None
     if ensemble:
         ens = ensemble_rollout(model, params, stats, x_prev, x0, sub_type, mask, n_steps,

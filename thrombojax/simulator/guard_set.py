@@ -3,6 +3,7 @@
 A rollout with guards runs, inside its compiled ``lax.scan``::
 
     s_{t+1} = learned step (s_{t-1}, s_t)
+    s_{t+1} = s_t + pace (s_{t+1} - s_t)   # off by default: the clot's step scaled, see below
     s_{t+1} = centring(s_{t+1})      # off by default: the clot's centroid held near the middle
     s_{t+1} = coherence(s_{t+1})     # the clot keeps its shape within `tolerance` of a rigid copy
     s_{t+1} = contain(s_{t+1})       # clot nodes that crossed the rigid wall are put back inside
@@ -19,6 +20,14 @@ penetration), coherence on with a 1 r tolerance (the true clot deviates from a r
 start by up to ~0.9 r in the built-in datasets, so coherence acts only on a clot that falls
 apart) and full stiffness. Centring (:func:`~thrombojax.simulator.centring.centre_clot`) is off
 unless a tolerance is given (``centring_r``).
+
+Pace (off unless ``pace`` is given) is a calibration rather than a guard: every clot node's
+learned step ``s_{t+1} - s_t`` is multiplied by ``pace`` before the guards act, so that a model
+whose clot runs along the vessel too fast or too slow can be slowed down or sped up
+(:mod:`thrombojax.eval.pace_fit` fits it on validation simulations; measured on ClotEntry, a
+pace fitted on one vessel does not carry over to others). It acts on the step of one state (a
+member's own, or a committee's mean), never on an ensemble's averaged output, so
+:meth:`GuardSet.apply` does not include it: the rollouts call :meth:`GuardSet.pace_step` first.
 """
 
 from __future__ import annotations
@@ -55,6 +64,8 @@ class GuardSet:
         centring: apply :func:`~thrombojax.simulator.centring.centre_clot` first.
         centre_tolerance, centre_lengths: its tolerance and ``(axis_radius, slab, reach)``
             (scaled coordinates).
+        pace: ``[]`` the factor on every clot node's learned step (traced: a new value does not
+            compile again). pacing: apply it (:meth:`pace_step`).
     """
 
     clot_index: jax.Array
@@ -70,6 +81,21 @@ class GuardSet:
     centre_tolerance: float = struct.field(pytree_node=False, default=0.0)
     centre_lengths: tuple[float, float, float] = struct.field(pytree_node=False,
                                                               default=(1.0, 1.0, 1.0))
+    pace: jax.Array | float = 1.0
+    pacing: bool = struct.field(pytree_node=False, default=False)
+
+    def pace_step(self, cur: jax.Array, nxt: jax.Array) -> tuple[jax.Array, dict[str, jax.Array]]:
+        """The learned step ``cur -> nxt`` (``[N, 3]`` each) of the clot rows times ``pace``;
+        returns ``(nxt, {"pace": how far every node was moved [N]})``, or ``(nxt, {})`` exactly
+        when pacing is off."""
+        if not self.pacing:
+            return nxt, {}
+        idx = self.clot_index
+        step = nxt[idx] - cur[idx]
+        moved = (self.pace - 1.0) * step
+        shift = jnp.sqrt(jnp.sum(moved * moved, axis=-1))
+        return (nxt.at[idx].set(cur[idx] + self.pace * step),
+                {"pace": jnp.zeros(nxt.shape[0], nxt.dtype).at[idx].set(shift)})
 
     def apply(self, x: jax.Array) -> tuple[jax.Array, dict[str, jax.Array]]:
         """Correct one frame ``x [N, 3]``; returns ``(x, {guard name: correction [N]})``.
@@ -111,6 +137,7 @@ def build_guards(
     stiffness: float = 1.0,
     tolerance_r: float = 1.0,
     centring_r: float | None = None,
+    pace: float | None = None,
 ) -> GuardSet:
     """Build the guards of one rollout on the host.
 
@@ -129,6 +156,8 @@ def build_guards(
         stiffness: coherence stiffness in [0, 1]. tolerance_r: coherence tolerance in radii.
         centring_r: the centring guard's tolerance in radii (>= 0; the clot's centroid may lie
             this far from the middle of the vessel's cross-section); None: no centring.
+        pace: the factor on every clot node's learned step before the guards (> 0; 1 leaves the
+            step as it is); None: off (:meth:`GuardSet.pace_step`).
     Returns:
         The :class:`GuardSet`.
     """
@@ -138,6 +167,8 @@ def build_guards(
         raise ConfigError(f"guards: coherence stiffness must be in [0, 1], got {stiffness}")
     if centring_r is not None and not centring_r >= 0:
         raise ConfigError(f"guards: the centring tolerance must be >= 0 radii, got {centring_r}")
+    if pace is not None and not (np.isfinite(pace) and pace > 0):
+        raise ConfigError(f"guards: the pace must be a number > 0, got {pace}")
     clot = np.flatnonzero(np.asarray(node_type) == NodeType.CLOT).astype(np.int32)
     if clot.size == 0:
         raise ConfigError("guards: the rolled-out node set has no clot node")
@@ -152,4 +183,5 @@ def build_guards(
         tolerance=float(tolerance_r * radius), centring=centring_r is not None,
         centre_tolerance=float((centring_r or 0.0) * radius),
         centre_lengths=centre_lengths(radius),
+        pace=jnp.asarray(1.0 if pace is None else pace, jnp.float32), pacing=pace is not None,
     )
