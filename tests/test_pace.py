@@ -6,7 +6,7 @@ import dataclasses
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from wall_factory import straight_tube
+from wall_factory import Outward, straight_tube
 
 from thrombojax.errors import ConfigError
 from thrombojax.eval.pace_fit import fit_pace, fit_pace_on_simulations
@@ -78,6 +78,8 @@ def test_pace_in_ensembles_acts_on_each_member_and_the_committee_once():
     com = committee_rollout(model, stacked, stats, x_prev, x0, node_type, mask, N_STEPS,
                             guards=guards)
     want = _centroid_path(single, x0, clot)
+    np.testing.assert_allclose(want, V[0] * np.cumsum(0.5 ** np.arange(1, N_STEPS + 1)),
+                               rtol=1e-4)  # paced once per step, not twice
     np.testing.assert_allclose(_centroid_path(ens.mean, x0, clot), want, rtol=1e-5)
     np.testing.assert_allclose(_centroid_path(com.mean, x0, clot), want, rtol=1e-5)
     assert "pace" not in ens.mean_corrections  # the mean is guarded, not paced again
@@ -113,18 +115,12 @@ def test_fit_pace_finds_the_pace_where_the_clot_ends_on_the_true_one():
 
 
 @dataclasses.dataclass(frozen=True)
-class Cruise:
+class Cruise(Outward):
     """A surrogate whose every node moves ``u`` along the tube per step, whatever its velocity
     (as a model that reads its speed from the vessel, not from its last step)."""
 
     u: float = 0.05
     name: str = "cruise"
-
-    def build_graph(self, inputs):
-        return {}
-
-    def init(self, rng, inputs, graph):
-        return {}
 
     def apply(self, params, inputs, graph, *, train=False, rng=None):
         return jnp.asarray([self.u, 0.0, 0.0]) - inputs.velocity  # identity statistics
