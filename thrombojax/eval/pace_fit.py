@@ -8,11 +8,12 @@ for one rung's few ensemble members as averaging many members does. The guards' 
 learned step; this module picks it so that the rolled-out clot ends where the true clot does
 along the true track (:func:`thrombojax.eval.track.track_errors`), on simulations the model
 was not trained on and is not then measured on (a run's validation split). Measured, it does
-not carry over: the along-track error differs in sign and size from vessel to vessel, so a
-pace fitted on one makes the others worse
-(``experiments/results/ladder_budget/clotentry_pace/README.md``). It is therefore no option
-of ``thrombojax rollout``; it stays here, with that measurement, as a tool to ask the question
-of other models and datasets.
+not carry over. The lag builds up in particular stretches of each vessel, not at a uniform
+rate, so a pace fitted on one vessel makes the others worse. And where the model carries its
+own speed (past a vessel's open end), a pace above 1 compounds at every step: one measured
+clot diverged (``experiments/results/ladder_budget/clotentry_pace/README.md``). It is
+therefore no option of ``thrombojax rollout``; it stays here, with that measurement, as a tool
+to ask the question of other models and datasets.
 
 :func:`fit_pace` is the search, pure: it is given the final signed along-track error (vessel
 radii, > 0 ahead) as a function of the pace and the true track's length. From ``pace = 1`` the
