@@ -124,6 +124,42 @@ def test_rollout_summary_figure(tmp_path):
         plot_rollout_summary(true, pred[:, :5], const, node_type, tmp_path / "x.png")
 
 
+def test_rollout_summary_row_labels_clear_the_first_panels_z_axis(tmp_path, monkeypatch):
+    """Each row's name stands in the figure's margin beside its row, not on the first panel's
+    z axis (its label and ticks). A long wavy vessel seen as ClotEntry's are (the camera then
+    puts the z axis on the panel's left)."""
+    import matplotlib.text
+
+    import thrombojax.eval.summary_plot as summary_plot
+
+    t = np.linspace(-30.0, 30.0, 400)
+    along, across = np.array([0.89, -0.17, 0.43]), np.array([0.37, -0.30, -0.88])
+    wall = (t[:, None] * along + 2.0 * np.sin(t / 5)[:, None] * across
+            + 0.5 * np.cos(t)[:, None] * np.cross(along, across))
+    clot = np.random.default_rng(0).normal(0.0, 1.0, (50, 3)) + wall[100]
+    true = np.stack([np.concatenate([clot + i * along, wall]) for i in range(6)])
+    node_type = np.array([NodeType.CLOT] * 50 + [NodeType.VESSEL] * 400)
+    figures = []
+    monkeypatch.setattr(summary_plot.plt, "close", figures.append)  # keep the figure
+    labels = ("mgn", "constant velocity", "ground truth")
+    plot_rollout_summary(true, true + 0.1, true + 0.2, node_type, tmp_path / "s.png",
+                         units="mm", frames=[0, 5], labels=labels)
+    fig = figures[0]
+    fig.canvas.draw()
+    renderer = fig.canvas.get_renderer()
+    names = {t.get_text(): t.get_window_extent(renderer)
+             for t in fig.findobj(matplotlib.text.Text) if t.get_text() in labels}
+    assert sorted(names) == sorted(labels)
+    first_column = fig.axes[0:6:2]  # two frames per row
+    z_axes = [ax.zaxis.get_tightbbox(renderer) for ax in first_column]
+    assert z_axes[0].x0 < first_column[0].get_window_extent(renderer).x0  # z axis on the left
+    for ax, label in zip(first_column, labels, strict=True):
+        box = names[label]
+        assert not any(box.overlaps(z) for z in z_axes), label
+        panel = ax.get_window_extent(renderer)
+        assert panel.y0 < (box.y0 + box.y1) / 2 < panel.y1, label
+
+
 def test_gif_frames_equal_full_redraws_and_matplotlibs_gif(tmp_path):
     """The static parts are drawn once (thrombojax/plotting/gif.py): every frame still equals
     a full redraw pixel for pixel, and the GIF equals the one FuncAnimation + PillowWriter

@@ -95,10 +95,12 @@ def plot_rollout_summary(
     norm = plt.Normalize(0.0, max(min(top, (lim[0, 1] - lim[0, 0]) / 5), 1e-12))
     n_cols = frames.size
     fig = plt.figure(figsize=(3.3 * n_cols + 0.9, 10.8), dpi=100)
-    mappable = None
-    for row, (traj, label) in enumerate(zip(trajs, labels, strict=True)):
+    mappable, first_column = None, []
+    for row, traj in enumerate(trajs):
         for col, t in enumerate(frames):
             ax = fig.add_subplot(3, n_cols, row * n_cols + col + 1, projection="3d")
+            if col == 0:
+                first_column.append(ax)
             setup_axes(ax, lim, None, angles)
             draw_wall(ax, trajs[2][0, wall])
             if row < 2:
@@ -114,10 +116,11 @@ def plot_rollout_summary(
             when = f"frame {frame}" + (f", t = {frame * dt:.3g} {time_unit}".rstrip()
                                        if dt is not None else "")
             ax.set_title(f"{when}\n{note}" if row == 0 else note, fontsize=8.5)
-            if col == 0:
-                ax.text2D(-0.08, 0.5, label, transform=ax.transAxes, rotation=90,
-                          va="center", ha="center", fontsize=11, fontweight="bold")
-    fig.subplots_adjust(left=0.04, right=0.9, bottom=0.03, top=0.89, wspace=0.08, hspace=0.18)
+    fig.subplots_adjust(left=0.05, right=0.9, bottom=0.03, top=0.89, wspace=0.08, hspace=0.18)
+    for ax, label in zip(first_column, labels, strict=True):  # in the margin, clear of the z axis
+        box = ax.get_position()
+        fig.text(0.012, (box.y0 + box.y1) / 2, label, rotation=90, va="center", ha="center",
+                 fontsize=11, fontweight="bold")
     bar_ax = fig.add_axes((0.92, 0.4, 0.015, 0.45))
     bar = fig.colorbar(mappable, cax=bar_ax, extend="max")
     bar.set_label(f"clot error: distance to truth [{units}]", fontsize=9)
