@@ -31,6 +31,7 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 from thrombojax.errors import ConfigError
+from thrombojax.eval.drift import centroid_speed
 from thrombojax.eval.rollouts import rollout_simulation
 from thrombojax.eval.track import track_errors
 from thrombojax.types import clot_mask
@@ -113,10 +114,7 @@ def fit_pace_on_simulations(
             errors.append(float(along[-1]) / radius)
         return float(np.mean(errors))
 
-    lengths = []
-    for _, positions, node_type, _ in simulations:
-        clot = clot_mask(np.asarray(node_type))
-        path = np.asarray(positions)[t0:, clot].mean(axis=1)
-        lengths.append(float(np.linalg.norm(np.diff(path, axis=0), axis=-1).sum()) / radius)
+    lengths = [float(centroid_speed(np.asarray(positions)[t0:], clot_mask(np.asarray(nt))).sum())
+               / radius for _, positions, nt, _ in simulations]
     fit = fit_pace(along_at, float(np.mean(lengths)), tol_r=tol_r, max_evals=max_evals)
     return fit | {"simulations": [s[0] for s in simulations]}

@@ -50,11 +50,7 @@ def _committee_impl(step, params, stats, x0_prev, x0, node_type, mask, guards, n
         preds = jax.vmap(lambda p: step(p, stats, prev, cur, node_type, mask,
                                         context=context).positions)(params)
         mean, spread = ensemble_stats(preds)
-        nxt, corrections = mean, {}
-        if guards is not None:
-            nxt, corrections = guards.pace_step(cur, nxt)
-            nxt, guarded = guards.apply(nxt)
-            corrections = corrections | guarded
+        nxt, corrections = (mean, {}) if guards is None else guards.after_step(cur, mean)
         return (step.shift(prev, cur), nxt), (preds, nxt, jnp.where(clot, spread, 0.0),
                                               corrections)
 

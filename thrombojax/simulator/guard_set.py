@@ -27,7 +27,8 @@ whose clot runs along the vessel too fast or too slow can be slowed down or sped
 (:mod:`thrombojax.eval.pace_fit` fits it on validation simulations; measured on ClotEntry, a
 pace fitted on one vessel does not carry over to others). It acts on the step of one state (a
 member's own, or a committee's mean), never on an ensemble's averaged output, so
-:meth:`GuardSet.apply` does not include it: the rollouts call :meth:`GuardSet.pace_step` first.
+:meth:`GuardSet.apply` does not include it: the rollouts call :meth:`GuardSet.after_step`
+(pace, then the guards).
 """
 
 from __future__ import annotations
@@ -96,6 +97,14 @@ class GuardSet:
         shift = jnp.sqrt(jnp.sum(moved * moved, axis=-1))
         return (nxt.at[idx].set(cur[idx] + self.pace * step),
                 {"pace": jnp.zeros(nxt.shape[0], nxt.dtype).at[idx].set(shift)})
+
+    def after_step(self, cur: jax.Array, nxt: jax.Array
+                   ) -> tuple[jax.Array, dict[str, jax.Array]]:
+        """What a rollout does after the learned step ``cur -> nxt`` of one state:
+        :meth:`pace_step`, then :meth:`apply`; their corrections together."""
+        nxt, paced = self.pace_step(cur, nxt)
+        nxt, guarded = self.apply(nxt)
+        return nxt, paced | guarded
 
     def apply(self, x: jax.Array) -> tuple[jax.Array, dict[str, jax.Array]]:
         """Correct one frame ``x [N, 3]``; returns ``(x, {guard name: correction [N]})``.

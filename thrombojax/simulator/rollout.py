@@ -102,11 +102,8 @@ def _scan(step, params, stats, x_prev, x_cur, node_type, mask, n_steps, *, train
         key = None if rng is None else jax.random.fold_in(rng, i)
         out = step(params, stats, prev, cur, node_type, mask, train=train, rng=key,
                    context=context)
-        nxt, corrections = out.positions, {}
-        if guards is not None:
-            nxt, corrections = guards.pace_step(cur, nxt)
-            nxt, guarded = guards.apply(nxt)
-            corrections = corrections | guarded
+        nxt, corrections = ((out.positions, {}) if guards is None
+                            else guards.after_step(cur, out.positions))
         return (step.shift(prev, cur), nxt, overflow | out.overflow), (nxt, out.output,
                                                                       corrections)
 
