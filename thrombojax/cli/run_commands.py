@@ -171,6 +171,10 @@ def _add_train(sub) -> None:
     p.add_argument("--clearance-features", type=NN_FLOAT, help="give clot nodes the distance "
                    "from the clot's centroid to the nearest vessel node, over this many radii "
                    "(the vessel's width where the clot stands; default 0: off)")
+    p.add_argument("--section-features", type=NN_FLOAT, help="give clot nodes the width of "
+                   "the vessel's cross-section at the clot's centroid, over this many radii "
+                   "(the width that sets the clot's speed, unchanged when the clot drifts "
+                   "across the vessel; default 0: off)")
     p.add_argument("--rest-edges", action="store_true", default=None, help="meshgraphnet: "
                    "give clot-clot edges their displacement in the clot's rest state (the "
                    "simulation's first frame) beside the current one, so the step sees strain")
@@ -212,7 +216,8 @@ def _run_train(args) -> int:
              "wall_clot_mean", "history_noise", "speed_noise", "direction_noise", "swell_noise",
              "stretch_noise", "time_scale", "clot_mean_weight", "wall_loss_weight", "select_by",
              "axis_features", "follow_axis", "lateral_hold", "outlet_features",
-             "shape_features", "clearance_features", "rest_edges", "init_from", "init_which")
+             "shape_features", "clearance_features", "section_features", "rest_edges",
+             "init_from", "init_which")
     overrides = {k: getattr(args, k) for k in names if getattr(args, k) is not None}
     from thrombojax.train.recipes import DEFAULT_RECIPE, recipe
 

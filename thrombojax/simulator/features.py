@@ -16,7 +16,9 @@ appends, in this order and each only when the step has it:
 5. each clot node's place along the clot's motion and the clot's length and width
    (``shape_radius > 0``; :func:`thrombojax.graph.clot_shape.clot_shape_features`);
 6. the distance from the clot's centroid to the nearest vessel node, on every clot node
-   (``clearance_radius > 0``; :func:`thrombojax.graph.clearance.clot_clearance`).
+   (``clearance_radius > 0``; :func:`thrombojax.graph.clearance.clot_clearance`);
+7. the width of the vessel's cross-section at the clot's centroid, on every clot node
+   (``section_radius > 0``; :func:`thrombojax.graph.section.clot_section_features`).
 """
 
 from __future__ import annotations
@@ -26,6 +28,7 @@ import jax.numpy as jnp
 
 from thrombojax.graph.clearance import clot_clearance
 from thrombojax.graph.clot_shape import clot_shape_features
+from thrombojax.graph.section import clot_section_features
 from thrombojax.graph.vessel_axis import axis_velocity_features, outlet_features
 from thrombojax.graph.wall_nodes import clot_wall_mean, signed_wall_features, wall_node_features
 from thrombojax.simulator.kinematics import past_accelerations
@@ -65,4 +68,6 @@ def extra_features(step, stats, x_prev, x_cur, node_type, mask, velocity_scale, 
         extra.append(clot_shape_features(last, x_cur, node_type, mask, scale=step.shape_radius))
     if step.clearance_radius > 0:
         extra.append(clot_clearance(x_cur, node_type, mask, scale=step.clearance_radius))
+    if step.section_radius > 0:
+        extra.append(clot_section_features(x_cur, node_type, mask, scale=step.section_radius))
     return jnp.concatenate(extra, axis=-1) if extra else None

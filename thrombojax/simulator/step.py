@@ -40,7 +40,9 @@ wall_signed=True)`` gives instead the signed distance to the wall and its outwar
 wall from one inside it; ``wall_clot_mean=True`` adds their clot-wide mean distance
 (:func:`thrombojax.graph.wall_nodes.clot_wall_mean`: the room the whole clot has).
 ``clearance_radius=L > 0`` gives clot nodes the distance from the clot's centroid to the
-nearest vessel node over ``L`` (:func:`thrombojax.graph.clearance.clot_clearance`).
+nearest vessel node over ``L`` (:func:`thrombojax.graph.clearance.clot_clearance`);
+``section_radius=L > 0`` the width of the vessel's cross-section at the clot's centroid over
+``L`` (:func:`thrombojax.graph.section.clot_section_features`).
 
 History: ``make_step(model, history=H)`` (``H >= 2``) also gives the model the accelerations of the
 ``H - 1`` steps before t, ``a_{t-j} = s_{t-j+1} - 2 s_{t-j} + s_{t-j-1}`` (in the step's frame,
@@ -159,6 +161,9 @@ class LearnedStep:
             :mod:`thrombojax.simulator.features`.)
         clearance_radius: > 0: clot nodes also get the clot's clearance over this length,
             scaled (:func:`thrombojax.graph.clearance.clot_clearance`); 0: off.
+        section_radius: > 0: clot nodes also get the vessel's width at the clot over this
+            length, scaled, also the unit of its windows (a vessel radius;
+            :func:`thrombojax.graph.section.clot_section_features`); 0: off.
         rest_edges: the step also reads the clot's rest state (``x_prev`` led by the
             simulation's first frame, :mod:`thrombojax.simulator.previous`) and the model's
             edges get their rest-state displacement (a model that reads edge features only).
@@ -179,13 +184,14 @@ class LearnedStep:
     shape_radius: float = 0.0
     rest_edges: bool = False
     clearance_radius: float = 0.0
+    section_radius: float = 0.0
 
     def __post_init__(self) -> None:
         if self.frame not in FRAMES:
             raise ConfigError(f"learned step: frame must be one of {list(FRAMES)}, "
                               f"got {self.frame!r}")
         for name in ("wall_cutoff", "axis_radius", "prior_radius", "lateral_radius",
-                     "outlet_radius", "shape_radius", "clearance_radius"):
+                     "outlet_radius", "shape_radius", "clearance_radius", "section_radius"):
             if not (getattr(self, name) >= 0 and getattr(self, name) < float("inf")):
                 raise ConfigError(f"learned step: {name} must be a finite number >= 0, "
                                   f"got {getattr(self, name)!r}")
@@ -388,7 +394,8 @@ def make_step(model: Surrogate, frame: str = "global", wall_cutoff: float = 0.0,
               axis_radius: float = 0.0, prior_radius: float = 0.0,
               lateral_radius: float = 0.0, wall_clot_mean: bool = False,
               outlet_radius: float = 0.0, shape_radius: float = 0.0,
-              rest_edges: bool = False, clearance_radius: float = 0.0) -> LearnedStep:
+              rest_edges: bool = False, clearance_radius: float = 0.0,
+              section_radius: float = 0.0) -> LearnedStep:
     """The learned simulator of a surrogate in ``frame`` with the options of
     :class:`LearnedStep` (the radii are scaled lengths, 0: off; see the module docstring)."""
     return LearnedStep(model=model, frame=frame, grid=grid, history=history,
@@ -397,4 +404,5 @@ def make_step(model: Surrogate, frame: str = "global", wall_cutoff: float = 0.0,
                        rest_edges=bool(rest_edges), wall_cutoff=float(wall_cutoff),
                        axis_radius=float(axis_radius), prior_radius=float(prior_radius),
                        lateral_radius=float(lateral_radius), outlet_radius=float(outlet_radius),
-                       shape_radius=float(shape_radius), clearance_radius=float(clearance_radius))
+                       shape_radius=float(shape_radius), clearance_radius=float(clearance_radius),
+                       section_radius=float(section_radius))

@@ -38,6 +38,7 @@ _RULES: dict[str, tuple[str, float, bool, bool]] = {
     "outlet_features": ("float", 0.0, True, False),
     "shape_features": ("float", 0.0, True, False),
     "clearance_features": ("float", 0.0, True, False),
+    "section_features": ("float", 0.0, True, False),
     "noise_gamma": ("float", 0.0, True, False),
     "noise_shared": ("float", 0.0, True, False),
     "wall_noise": ("float", 0.0, True, False),

@@ -156,6 +156,11 @@ class TrainConfig:
             centroid to the nearest vessel node is divided by and given to every clot node:
             the vessel's width where the clot stands, which sets its speed, read through the
             centroid alone (0: off; :func:`thrombojax.graph.clearance.clot_clearance`).
+        section_features: length, in vessel radii, that the width of the vessel's
+            cross-section at the clot's centroid is divided by and given to every clot node
+            (also the unit of its windows): the width that sets the clot's speed, which does
+            not change when the clot drifts across the vessel (0: off;
+            :func:`thrombojax.graph.section.clot_section_features`).
         rest_edges: the step also reads the clot's rest state (the simulation's first frame)
             and MeshGraphNet's clot-clot edges get their rest-state displacement beside the
             current one, so the step sees each edge's strain (DeepMind's deforming plate;
@@ -223,6 +228,7 @@ class TrainConfig:
     outlet_features: float = 0.0
     shape_features: float = 0.0
     clearance_features: float = 0.0
+    section_features: float = 0.0
     rest_edges: bool = False
     wall_signed: bool = False
     wall_clot_mean: bool = False

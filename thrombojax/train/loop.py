@@ -234,7 +234,7 @@ def train(
               if cfg.noise_std > 0 or cfg.wall_features > 0 or cfg.wall_noise > 0
               or cfg.axis_features > 0 or cfg.follow_axis > 0 or cfg.lateral_hold > 0
               or cfg.outlet_features > 0 or cfg.shape_features > 0
-              or cfg.clearance_features > 0
+              or cfg.clearance_features > 0 or cfg.section_features > 0
               or cfg.history_noise > 0 or cfg.select_by == "rollout" else 0.0)
     wall_cutoff = cfg.wall_features * radius
     step_fn = make_step(model, cfg.frame, wall_cutoff, history=cfg.history,
@@ -245,7 +245,8 @@ def train(
                         wall_clot_mean=cfg.wall_clot_mean,
                         outlet_radius=cfg.outlet_features * radius,
                         shape_radius=cfg.shape_features * radius, rest_edges=cfg.rest_edges,
-                        clearance_radius=cfg.clearance_features * radius)
+                        clearance_radius=cfg.clearance_features * radius,
+                        section_radius=cfg.section_features * radius)
     state = init_state(step_fn, tx, init_key, batch_of(plan_of(epoch=0)[0]))
     if cfg.init_from and not resume:  # the weights of another run (fine-tuning)
         state = warm_start(state, tx, cfg.init_from, cfg.init_which, model_name)
@@ -258,6 +259,7 @@ def train(
         "lateral_radius": step_fn.lateral_radius, "outlet_radius": step_fn.outlet_radius,
         "shape_radius": step_fn.shape_radius, "units": str(ds.attrs.get("units", "")),
         "clearance_radius": step_fn.clearance_radius,
+        "section_radius": step_fn.section_radius,
         "steps_per_epoch": steps_per_epoch, "total_steps": total_steps, "devices": mesh.size,
         "split": split.to_dict(),
     }

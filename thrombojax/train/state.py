@@ -105,7 +105,8 @@ class TrainedModel:
                          outlet_radius=float(self.config.get("outlet_radius", 0.0)),
                          shape_radius=float(self.config.get("shape_radius", 0.0)),
                          rest_edges=self.run.train.rest_edges,
-                         clearance_radius=float(self.config.get("clearance_radius", 0.0)))
+                         clearance_radius=float(self.config.get("clearance_radius", 0.0)),
+                         section_radius=float(self.config.get("section_radius", 0.0)))
 
 
 def _manager(directory: pathlib.Path, *, read_only: bool = False) -> ocp.CheckpointManager:
