@@ -419,3 +419,31 @@ def stretch_carry_after_training(step, make_window, stats, *, stretch_noise: flo
         carry.append(swell_carry(step, params, stats, np.asarray(frames), np.asarray(nt), [1, 2],
                                  delta=0.05, mask=np.asarray(mask), along_motion=True))
     return float(np.mean(carry))
+
+
+def width_speed_error(window: Callable, option: str, value: float) -> float:
+    """A tiny step made with ``option=value`` trained (600 Adam steps) on clots whose
+    acceleration is set by the width of the vessel they pass (-0.01, 0 and +0.01 per frame
+    squared at widths 1.6, 2.0, 2.4; the wall beyond the graph's reach). ``window(rng, radius,
+    accel)`` gives one 3-frame window ``(frames, node_type, mask)`` as numpy arrays. Returns
+    the mean absolute error of the predicted clot-mean acceleration along x on new clots,
+    relative to the spread of the truth (0.01)."""
+    from thrombojax.models.registry import create_model, get_config
+    from thrombojax.simulator.step import make_step
+    from thrombojax.types import NodeType, TargetStats
+
+    stats = TargetStats(mean=jnp.zeros(3), std=jnp.full(3, 0.02), velocity_std=jnp.asarray(0.05))
+    radii, accels = (1.6, 2.0, 2.4), (-0.01, 0.0, 0.01)
+    step = make_step(create_model("mgn", get_config("mgn", tiny=True, max_neighbors=8,
+                                                    radius=0.3)), **{option: value})
+    windows = [window(np.random.default_rng(i), radii[i % 3], accels[i % 3]) for i in range(9)]
+    batch = window_batch([tuple(jnp.asarray(a) for a in w) for w in windows])
+    params = train_tiny_step(step, batch, stats, steps=600)
+    errors = []
+    for i, (radius, accel) in enumerate(zip(radii, accels, strict=True)):
+        frames, nt, mask = window(np.random.default_rng(20 + i), radius, accel)
+        nxt = np.asarray(step(params, stats, frames[0], frames[1], nt, mask).positions)
+        clot = (nt == NodeType.CLOT) & mask
+        pred = (nxt - 2 * frames[1] + frames[0])[clot, 0].mean()
+        errors.append(abs(pred - accel))
+    return float(np.mean(errors)) / 0.01

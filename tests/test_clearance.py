@@ -8,12 +8,9 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from thrombojax.graph.clearance import CLEARANCE_FEATURES, clot_clearance
-from thrombojax.models.registry import create_model, get_config
-from thrombojax.simulator.step import make_step
-from thrombojax.types import NodeType, TargetStats
+from thrombojax.types import NodeType
 
 ROT = Rotation.from_euler("xyz", [0.4, 2.1, -1.3]).as_matrix().astype(np.float32)
-STATS = TargetStats(mean=jnp.zeros(3), std=jnp.full(3, 0.02), velocity_std=jnp.asarray(0.05))
 
 
 def _clot_in_ring(rng, radius=2.0, n_clot=40, sigma=0.25, speed=0.05, accel=0.0):
@@ -99,29 +96,13 @@ def test_cli_trains_with_clearance_features_and_reloads_the_step(tmp_path):
 
 
 def _speed_change_error(clearance_radius: float) -> float:
-    """The tiny step trained (600 Adam steps) on clots whose acceleration is set by the width of
-    the ring they pass (-0.01, 0 and +0.01 per frame squared in rings of radius 1.6, 2.0, 2.4;
-    the ring is beyond the graph's reach); returns the mean absolute error of the predicted
-    clot-mean acceleration along x on new clots, relative to the spread of the truth (0.01)."""
-    from dataset_factory import train_tiny_step, window_batch
+    """:func:`dataset_factory.width_speed_error` on this module's clots."""
+    from dataset_factory import width_speed_error
 
-    radii, accels = (1.6, 2.0, 2.4), (-0.01, 0.0, 0.01)
-    step = make_step(create_model("mgn", get_config("mgn", tiny=True, max_neighbors=8,
-                                                    radius=0.3)),
-                     clearance_radius=clearance_radius)
-    windows = [_clot_in_ring(np.random.default_rng(i), radius=radii[i % 3], accel=accels[i % 3])
-               for i in range(9)]
-    batch = window_batch([tuple(jnp.asarray(a) for a in w) for w in windows])
-    params = train_tiny_step(step, batch, STATS, steps=600)
-    errors = []
-    for i, (radius, accel) in enumerate(zip(radii, accels, strict=True)):
-        frames, nt, mask = _clot_in_ring(np.random.default_rng(20 + i), radius=radius,
-                                         accel=accel)
-        nxt = np.asarray(step(params, STATS, frames[0], frames[1], nt, mask).positions)
-        clot = (nt == NodeType.CLOT) & mask
-        pred = (nxt - 2 * frames[1] + frames[0])[clot, 0].mean()
-        errors.append(abs(pred - accel))
-    return float(np.mean(errors)) / 0.01
+    def window(rng, radius, accel):
+        return _clot_in_ring(rng, radius=radius, accel=accel)
+
+    return width_speed_error(window, "clearance_radius", clearance_radius)
 
 
 def test_clearance_lets_a_step_see_the_width_that_sets_the_speed():

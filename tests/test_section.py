@@ -9,12 +9,9 @@ from scipy.spatial.transform import Rotation
 
 from thrombojax.graph.clearance import clot_clearance
 from thrombojax.graph.section import SECTION_FEATURES, clot_section_features, section_width
-from thrombojax.models.registry import create_model, get_config
-from thrombojax.simulator.step import make_step
-from thrombojax.types import NodeType, TargetStats
+from thrombojax.types import NodeType
 
 ROT = Rotation.from_euler("xyz", [0.4, 2.1, -1.3]).as_matrix().astype(np.float32)
-STATS = TargetStats(mean=jnp.zeros(3), std=jnp.full(3, 0.02), velocity_std=jnp.asarray(0.05))
 
 
 def _tube(radius_at, length=8.0, spacing=0.25, around=16):
@@ -129,37 +126,16 @@ def test_cli_trains_with_section_features_and_reloads_the_step(tmp_path):
                             "section_radius")
 
 
-def _speed_change_error(section_radius: float) -> float:
-    """The tiny step trained (600 Adam steps) on clots whose acceleration is set by the width of
-    the tube they pass (-0.01, 0 and +0.01 per frame squared in tubes of radius 1.6, 2.0, 2.4;
-    the wall is beyond the graph's reach); returns the mean absolute error of the predicted
-    clot-mean acceleration along x on new clots, relative to the spread of the truth (0.01)."""
-    from dataset_factory import train_tiny_step, window_batch
-
-    radii, accels = (1.6, 2.0, 2.4), (-0.01, 0.0, 0.01)
-    step = make_step(create_model("mgn", get_config("mgn", tiny=True, max_neighbors=8,
-                                                    radius=0.3)),
-                     section_radius=section_radius)
-    windows = [_clot_in_tube(np.random.default_rng(i), radius=radii[i % 3], accel=accels[i % 3],
-                             sigma=0.25) for i in range(9)]
-    batch = window_batch([tuple(jnp.asarray(a) for a in w) for w in windows])
-    params = train_tiny_step(step, batch, STATS, steps=600)
-    errors = []
-    for i, (radius, accel) in enumerate(zip(radii, accels, strict=True)):
-        frames, nt, mask = _clot_in_tube(np.random.default_rng(20 + i), radius=radius,
-                                         accel=accel, sigma=0.25)
-        nxt = np.asarray(step(params, STATS, frames[0], frames[1], nt, mask).positions)
-        clot = (nt == NodeType.CLOT) & mask
-        pred = (nxt - 2 * frames[1] + frames[0])[clot, 0].mean()
-        errors.append(abs(pred - accel))
-    return float(np.mean(errors)) / 0.01
-
-
 def test_section_width_lets_a_step_see_the_width_that_sets_the_speed():
     """Fails without the feature: the tube wall that sets each clot's acceleration is out of the
     graph's reach, so the tiny step learns the mean (error about 2/3 of the spread); given the
-    width it tells the three tubes apart."""
-    without = _speed_change_error(0.0)
-    with_it = _speed_change_error(1.0)
+    width it tells the three tubes apart (:func:`dataset_factory.width_speed_error`)."""
+    from dataset_factory import width_speed_error
+
+    def window(rng, radius, accel):
+        return _clot_in_tube(rng, radius=radius, accel=accel, sigma=0.25)
+
+    without = width_speed_error(window, "section_radius", 0.0)
+    with_it = width_speed_error(window, "section_radius", 1.0)
     assert without > 0.5
     assert with_it < 0.3 * without
