@@ -2,7 +2,7 @@
 
 Why: a clot pushed through a tapering, wobbling vessel slows where the vessel narrows and
 speeds up where it widens. Rolled out, the ClotEntry ensembles answer too weakly: on a
-held-out vessel whose true clot slows to two thirds of its speed through a narrow stretch the
+held-out vessel whose true clot slows to 70 % of its speed through a narrow stretch the
 seven-member ensemble kept 1.1-1.5 times the true speed there, then ran at 0.8 times the
 true speed where the vessel widened (``speed_per_step_r`` against ``speed_true_per_step_r`` in
 ``experiments/results/ladder_budget/clotentry_pace/heldout/e7_guards.json``).
@@ -31,6 +31,11 @@ true tracks of the ten ClotEntry simulations it correlates with the clot's speed
 ``experiments/results/ladder_budget/clotentry_section/width_track.json``): what it adds is
 that a clot off the true track reads the same width. Invariant to rotations and
 translations; a constant to differentiation; jittable, ``O(N)`` (no pairwise search).
+
+Measured as an input of one rung's ClotEntry ensembles it made their rollouts end further off
+(1.24-1.47 r without it, 2.26-2.36 r with it: the same narrowing slows one simulation's clot
+by 30 % and another's by 8 %); not a default
+(``experiments/results/ladder_budget/clotentry_section/README.md``).
 """
 
 from __future__ import annotations
