@@ -38,28 +38,22 @@ even when no vessel node is among its graph neighbours; ``make_step(model, wall_
 wall_signed=True)`` gives instead the signed distance to the wall and its outward normal
 (:func:`thrombojax.graph.wall_nodes.signed_wall_features`), which tell a node that crossed the
 wall from one inside it; ``wall_clot_mean=True`` adds their clot-wide mean distance
-(:func:`thrombojax.graph.wall_nodes.clot_wall_mean`: the room the whole clot has).
-``clearance_radius=L > 0`` gives clot nodes the distance from the clot's centroid to the
-nearest vessel node over ``L`` (:func:`thrombojax.graph.clearance.clot_clearance`);
-``section_radius=L > 0`` the width of the vessel's cross-section at the clot's centroid over
-``L`` (:func:`thrombojax.graph.section.clot_section_features`).
+(:func:`thrombojax.graph.wall_nodes.clot_wall_mean`: the room the whole clot has). The other
+extra inputs, and their order: :mod:`thrombojax.simulator.features`.
 
 History: ``make_step(model, history=H)`` (``H >= 2``) also gives the model the accelerations of the
 ``H - 1`` steps before t, ``a_{t-j} = s_{t-j+1} - 2 s_{t-j} + s_{t-j-1}`` (in the step's frame,
-divided by one number, the RMS of ``stats.std``), as extra node features. The dynamics carry state
-the current velocity does not show (the drive ramps in time; damping, friction and drive differ per
-simulation), and the last acceleration is its best witness: extrapolated alone, it is 0.59x
-constant velocity in one step on BendVessel's rollout phase (``docs/rollouts.md``). ``x_prev`` is
-then ``[H, n_nodes, 3]``, the frames ``s_{t-H} .. s_{t-1}`` oldest first
-(:meth:`LearnedStep.previous` takes them from a trajectory, :meth:`LearnedStep.shift` advances them
-in a rollout); ``H = 1`` keeps ``x_prev [n_nodes, 3]`` = s_{t-1}. ``make_step(model,
-rest_edges=True)`` also reads the clot's rest state, the simulation's first frame, at the head
-of ``x_prev`` (:mod:`thrombojax.simulator.previous`), and MeshGraphNet's clot-clot edges get
-their rest-state displacement beside the current one (DeepMind's deforming-plate model).
+divided by one number, the RMS of ``stats.std``), as extra node features: state the current
+velocity does not show (why: ``docs/rollouts.md``). ``x_prev`` is then ``[H, n_nodes, 3]``, the
+frames ``s_{t-H} .. s_{t-1}`` oldest first (:meth:`LearnedStep.previous` takes them from a
+trajectory, :meth:`LearnedStep.shift` advances them in a rollout); ``H = 1`` keeps ``x_prev``
+``[n_nodes, 3]`` = s_{t-1}. ``make_step(model, rest_edges=True)`` also reads the clot's rest
+state, the simulation's first frame, at the head of ``x_prev``
+(:mod:`thrombojax.simulator.previous`), and MeshGraphNet's clot-clot edges get their rest-state
+displacement beside the current one (DeepMind's deforming-plate model).
 
 Rollout context: the vessel is rigid, so ``step.context(x0, node_type, mask)`` searches its wall
-once (:mod:`thrombojax.simulator.context`) and ``step(..., context=...)`` reads the search, with
-the same result; every rollout (:func:`thrombojax.simulator.rollout.unroll`) does so.
+once (:mod:`thrombojax.simulator.context`) and every rollout's ``step(..., context=...)`` reads it.
 
 Full resolution: ``make_step(model, grid=spec)`` carries a static cell-grid
 :class:`~thrombojax.graph.grid.GridSpec` to the model's radius search, which uses it where it pays
@@ -67,8 +61,7 @@ Full resolution: ``make_step(model, grid=spec)`` carries a static cell-grid
 :func:`thrombojax.graph.neighbors.radius_graph`) and the dense search elsewhere (small clouds are
 unchanged bit for bit). :attr:`StepOutput.overflow` reports a grid buffer that was too small; the
 host sizes the spec from the data and re-allocates on overflow
-(:mod:`thrombojax.simulator.grid_step`). Consumers that do not check the flag refuse a step with a
-grid (:meth:`LearnedStep.require_dense`).
+(:mod:`thrombojax.simulator.grid_step`); consumers that do not check it refuse a grid step.
 """
 
 from __future__ import annotations
@@ -159,11 +152,10 @@ class LearnedStep:
             clot's length and width (:func:`thrombojax.graph.clot_shape.clot_shape_features`,
             over this length, scaled); 0: off. (The order of all extra features:
             :mod:`thrombojax.simulator.features`.)
-        clearance_radius: > 0: clot nodes also get the clot's clearance over this length,
-            scaled (:func:`thrombojax.graph.clearance.clot_clearance`); 0: off.
-        section_radius: > 0: clot nodes also get the vessel's width at the clot over this
-            length, scaled, also the unit of its windows (a vessel radius;
-            :func:`thrombojax.graph.section.clot_section_features`); 0: off.
+        clearance_radius, section_radius: > 0: clot nodes also get the clot's clearance
+            (:func:`thrombojax.graph.clearance.clot_clearance`) / the vessel's width at the
+            clot (:func:`thrombojax.graph.section.clot_section_features`) over this length,
+            scaled; 0: off.
         rest_edges: the step also reads the clot's rest state (``x_prev`` led by the
             simulation's first frame, :mod:`thrombojax.simulator.previous`) and the model's
             edges get their rest-state displacement (a model that reads edge features only).
