@@ -19,7 +19,9 @@ last two frames alone (no model, no training):
   (``v <- s sign(V . T) T``), where ``s = a + b * clearance`` is a straight line fitted to
   every step of the simulations SIMS (:func:`clot_speed.simulation_record`: the true clot
   centroid's speed per frame against its distance to the nearest wall node, both in vessel
-  radii), the clearance measured from the rollout's own clot centroid at every step.
+  radii), the clearance measured from the rollout's own clot centroid at every step; with
+  ``--room-line constant`` the line is flat (``b = 0``, ``a`` the mean speed per frame of those
+  steps): the clot pushed along the vessel at the training simulations' pace.
 
 Each is rolled out alone and with the physics guards (containment, coherence) of
 :func:`thrombojax.simulator.guard_set.build_guards`, from the dataset's ``skip_frames`` to the
@@ -114,9 +116,10 @@ def roll(rule: str, x_prev, x0, node_type, n_steps: int, axis_radius: float, gua
 _roll = jax.jit(roll, static_argnums=(0, 4, 5))  # one compilation per rule, length, guards
 
 
-def fit_room_line(ds, sims: list[str]) -> tuple[float, float]:
+def fit_room_line(ds, sims: list[str], constant: bool = False) -> tuple[float, float]:
     """``(a, b)``: the least-squares line speed = a + b * clearance (vessel radii per frame
-    against vessel radii) over every step of the rollout windows of ``sims``."""
+    against vessel radii) over every step of the rollout windows of ``sims``; ``constant``:
+    ``b = 0`` and ``a`` their mean speed."""
     sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))  # experiments/
     from clot_speed import simulation_record
 
@@ -125,6 +128,8 @@ def fit_room_line(ds, sims: list[str]) -> tuple[float, float]:
                               smooth=3) for n in sims]
     x = np.concatenate([rec["clearance"] for rec in recs])
     y = np.concatenate([rec["speed"] for rec in recs])
+    if constant:
+        return float(np.mean(y)), 0.0
     if np.ptp(x) == 0:
         raise ValueError(f"the clearance never varies over {sims}: no line to fit")
     b, a = np.polyfit(x, y, 1)
@@ -178,6 +183,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--room-fit", default=None,
                         help="simulations (comma-separated; not those of --sims) to fit the "
                         "room rules' speed-against-clearance line on; without it, no room rule")
+    parser.add_argument("--room-line", choices=("clearance", "constant"), default="clearance",
+                        help="the room rules' line: speed against clearance (default), or "
+                        "constant, the mean speed of --room-fit's steps")
     parser.add_argument("--out", required=True, help="output folder (table.md, JSON)")
     parser.add_argument("--force", action="store_true", help="replace existing outputs")
     args = parser.parse_args(argv)
@@ -189,11 +197,14 @@ def main(argv: list[str] | None = None) -> int:
         fit = args.room_fit.split(",")
         if set(fit) & set(args.sims.split(",")):
             parser.error("--room-fit must not name a simulation of --sims (it is scored)")
-        line = fit_room_line(ds, fit)
+        line = fit_room_line(ds, fit, constant=args.room_line == "constant")
         print(f"room line fitted on {fit}: speed = {line[0]:.4f} + {line[1]:.4f} * clearance "
               "(r per frame, r)")
     per_sim = {name: measure(ds, name, args.nodes, args.axis_radius, line)
                for name in args.sims.split(",")}
+    if args.room_line == "constant":  # the flat line's rows say what they are
+        per_sim = {n: {k.replace("room speed", "training pace"): v for k, v in rows.items()}
+                   for n, rows in per_sim.items()}
     labels = list(next(iter(per_sim.values())))
     mean = {k: {m: float(np.mean([s[k][m] for s in per_sim.values()]))
                 for m in ("ratio_cv", "final_centroid_r")} |
@@ -209,11 +220,12 @@ def main(argv: list[str] | None = None) -> int:
             + "\n\n" + "\n".join(f"- {k}: {v}" for k, v in env.items()) + "\n")
     out.mkdir(parents=True, exist_ok=True)
     if line is not None:
-        text = text.replace("\n\n- ", f"\n\nRoom rules: speed = {line[0]:.4f} + {line[1]:.4f} "
+        name = "Training pace" if args.room_line == "constant" else "Room rules"
+        text = text.replace("\n\n- ", f"\n\n{name}: speed = {line[0]:.4f} + {line[1]:.4f} "
                             f"* clearance (r per frame, r), fitted on {args.room_fit}.\n\n- ", 1)
     atomic_write_text(out / "follow_axis.json", json.dumps(
         {"environment": env, "simulations": per_sim, "mean": mean, "room_line": line,
-         "room_fit": args.room_fit}, indent=1))
+         "room_fit": args.room_fit, "room_line_kind": args.room_line}, indent=1))
     atomic_write_text(out / "table.md", text)
     print(text)
     return 0

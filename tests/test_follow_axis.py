@@ -128,6 +128,15 @@ def test_the_follow_axis_experiment_rules_and_script(tmp_path):
     assert "room speed, rigid, guarded" in text and f"fitted on {fit}" in text
     with pytest.raises(Exception, match="exists|force"):
         module.main(argv)
+    # the flat line: the fitted simulation's mean speed, no slope, rows named for what they are
+    a, b = module.fit_room_line(open_dataset(data), [fit], constant=True)
+    slope_a, slope_b = module.fit_room_line(open_dataset(data), [fit])
+    assert b == 0.0 and slope_b != 0.0 and 0.0 < a
+    flat = tmp_path / "flat"
+    assert module.main(argv[:-1] + [str(flat), "--room-line", "constant"]) == 0
+    text = (flat / "table.md").read_text()
+    assert "training pace, per node, guarded" in text and "room speed" not in text
+    assert f"Training pace: speed = {a:.4f} + 0.0000" in text
     with pytest.raises(SystemExit):  # a scored simulation is not fitted on
         module.main(["--dataset", str(data), "--sims", name, "--room-fit", name,
                      "--out", str(tmp_path / "refused")])

@@ -14,7 +14,9 @@ Every run is evaluated at its last checkpoint; ``+`` joins runs into an ensemble
 alone with a row of its own); ``:guards`` turns the physics guards on, and
 ``:guards,NAME=VALUE,...`` sets their options (numbers, keyword arguments of
 ``thrombojax.simulator.guard_set.build_guards``, e.g. ``:guards,tolerance_r=0.3``, the coherence
-guard's tolerance in vessel radii). Each row's JSON keeps
+guard's tolerance in vessel radii), except ``rotations=R``: every model also rolled out on
+``R`` turned copies of each simulation (``fixed_rotations(R)``, the first unturned), all
+members of one ensemble (``thrombojax rollout --rotations R``). Each row's JSON keeps
 the environment it was measured in (``measured``); the tables' closing lines are those of the
 process that wrote them.
 """
@@ -46,7 +48,9 @@ def main() -> None:
         label, _, rest = spec.partition("=")
         runs, _, flag = rest.partition(":")
         flag, *options = flag.split(",") if flag else [""]
-        guard_options = {k: float(v) for k, v in (o.split("=", 1) for o in options)} or None
+        guard_options = {k: float(v) for k, v in (o.split("=", 1) for o in options)}
+        rotations = int(guard_options.pop("rotations", 0))
+        guard_options = guard_options or None
         path = out / f"{label}.json"
         if path.is_file():
             results[label] = json.loads(path.read_text())
@@ -58,7 +62,7 @@ def main() -> None:
         print("evaluating", label, flush=True)
         results[label] = evaluate_runs([pathlib.Path(r) for r in runs.split("+")], data,
                                        flag == "guards", nodes, names, "last",
-                                       guard_options=guard_options)
+                                       guard_options=guard_options, rotations=rotations)
         results[label]["measured"] = environment()
         atomic_write_text(path, json.dumps(results[label], indent=1))
     print(write_reports(out, results, title=title, test_sims=names, nodes=nodes,
