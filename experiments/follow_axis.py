@@ -189,6 +189,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", required=True, help="output folder (table.md, JSON)")
     parser.add_argument("--force", action="store_true", help="replace existing outputs")
     args = parser.parse_args(argv)
+    if args.room_line == "constant" and not args.room_fit:
+        parser.error("--room-line constant needs --room-fit (the simulations whose mean speed "
+                     "it takes)")
     out = pathlib.Path(args.out)
     check_targets([out / "table.md", out / "follow_axis.json"], force=args.force)
     ds = open_dataset(args.dataset)

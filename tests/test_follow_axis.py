@@ -137,6 +137,9 @@ def test_the_follow_axis_experiment_rules_and_script(tmp_path):
     text = (flat / "table.md").read_text()
     assert "training pace, per node, guarded" in text and "room speed" not in text
     assert f"Training pace: speed = {a:.4f} + 0.0000" in text
+    with pytest.raises(SystemExit):  # a flat line with nothing to fit it on
+        module.main(["--dataset", str(data), "--sims", name, "--room-line", "constant",
+                     "--out", str(tmp_path / "no_fit")])
     with pytest.raises(SystemExit):  # a scored simulation is not fitted on
         module.main(["--dataset", str(data), "--sims", name, "--room-fit", name,
                      "--out", str(tmp_path / "refused")])
