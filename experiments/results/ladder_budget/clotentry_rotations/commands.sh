@@ -41,3 +41,16 @@ mkdir -p $D/heldout
 cp $M/heldout/e3_rot4_guards.json $M/heldout/e4_rot4_guards.json $M/heldout/table.md \
    $M/heldout/ladder.json $M/heldout/error_per_step.png $D/heldout/
 # (the e3_guards / e4_guards rows are ../clotentry_pace/heldout/'s files, not copied here)
+# 4. the same two ensembles, unturned, with the centring guard at 0.15 r (centring/; 7 min 9 s
+#    for both rows, alone), and the three-seed one on the validation vessel clotentry_007
+#    (centring/validation/)
+python $CE --nodes 2048 $M/centre data/clotentry.h5 clotentry_008,clotentry_009 \
+  "ClotEntry, held out (2-epoch seeds of the room recipe as one ensemble, centring 0.15 r)" \
+  e3_centre15=$E3:guards,centring_r=0.15 e4_centre15=$E4:guards,centring_r=0.15
+python $CE --nodes 2048 --sims-kind "validation simulation" $M/centre007 data/clotentry.h5 clotentry_007 \
+  "ClotEntry, validation (three 2-epoch seeds of the room recipe as one ensemble, centring 0.15 r)" \
+  e3_centre15_007=$E3:guards,centring_r=0.15
+mkdir -p $D/centring/validation
+cp $M/centre/e3_centre15.json $M/centre/e4_centre15.json $M/centre/table.md $M/centre/ladder.json \
+   $M/centre/error_per_step.png $D/centring/
+cp $M/centre007/* $D/centring/validation/
