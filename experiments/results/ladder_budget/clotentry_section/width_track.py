@@ -8,7 +8,9 @@ Per simulation, every 4th frame from the dataset's first rolled-out frame: the c
 (its centroid's step to the next frame), the section width
 (``thrombojax.graph.section.clot_section_features``) and the clearance
 (``thrombojax.graph.clearance.clot_clearance``), both at 1 vessel radius, on ``N`` nodes
-drawn once per simulation (seed 0; default 2,048, as the rollouts); the squeeze, the clot's
+drawn once per simulation (default 2,048, the rollouts' count; a uniform draw with seed 0, not
+the rollouts' clot-fraction-keeping ``thrombojax.data.augment.subsample_indices``: kept so that
+the committed ``width_track.json`` reproduces); the squeeze, the clot's
 rest radius (the largest distance of a clot node from the clot's long axis in frame 0, all
 nodes) over the width; their Pearson correlations with the speed, within each simulation and
 pooled over all of them. No model is involved: this is the data alone. The JSON keeps the
@@ -29,7 +31,7 @@ from thrombojax.graph.clearance import clot_clearance
 from thrombojax.graph.section import clot_section_features
 from thrombojax.io.hdf5 import open_dataset
 from thrombojax.io.outputs import atomic_write_text
-from thrombojax.types import NodeType
+from thrombojax.types import NodeType, clot_mask
 
 
 def track(ds, name: str, nodes: int, every: int = 4) -> dict:
@@ -39,7 +41,7 @@ def track(ds, name: str, nodes: int, every: int = 4) -> dict:
     idx = np.sort(np.random.default_rng(0).choice(pos.shape[1], min(nodes, pos.shape[1]),
                                                   replace=False))
     nt, mask = nt[idx], np.ones(len(idx), bool)
-    clot = (nt == NodeType.CLOT) & mask
+    clot = clot_mask(nt, mask)
     width = jax.jit(lambda x: clot_section_features(x, nt, mask, scale=r))
     clearance = jax.jit(lambda x: clot_clearance(x, nt, mask, scale=r))
     rows = {"frame": [], "speed_r": [], "width_r": [], "clearance_r": []}
