@@ -39,6 +39,12 @@ python $CE --nodes 2048 $M/../five data/clotentry.h5 clotentry_008,clotentry_009
   e5b_guards=$M/s11+$M/s12+$M/s13+$M/s14+$M/s15:guards \
   e5c_guards=$M/s12+$M/s13+$M/s14+$M/s15+$M/s16:guards \
   e5d_guards=$M/s13+$M/s14+$M/s15+$M/s16+$M/s10:guards
+# 4b. the other three cyclic windows (10 min 41 s for the three rows, alone)
+python $CE --nodes 2048 $M/../five data/clotentry.h5 clotentry_008,clotentry_009 \
+  "ClotEntry, held out (2-epoch seeds of the room recipe as one ensemble)" \
+  e5e_guards=$M/s14+$M/s15+$M/s16+$M/s10+$M/s11:guards \
+  e5f_guards=$M/s15+$M/s16+$M/s10+$M/s11+$M/s12:guards \
+  e5g_guards=$M/s16+$M/s10+$M/s11+$M/s12+$M/s13:guards
 # 5. one table with the earlier draws of the same seeds (JSONs of ../clotentry_pace/heldout/ and
 #    ../clotentry_rotations/centring/ copied into $M/../five; every row reused, nothing rolled
 #    out again; R=/work/exp/rot held those runs)
@@ -49,6 +55,9 @@ python $CE --nodes 2048 $M/../five data/clotentry.h5 clotentry_008,clotentry_009
   e5_guards=$E5:guards e5b_guards=$M/s11+$M/s12+$M/s13+$M/s14+$M/s15:guards \
   e5c_guards=$M/s12+$M/s13+$M/s14+$M/s15+$M/s16:guards \
   e5d_guards=$M/s13+$M/s14+$M/s15+$M/s16+$M/s10:guards \
+  e5e_guards=$M/s14+$M/s15+$M/s16+$M/s10+$M/s11:guards \
+  e5f_guards=$M/s15+$M/s16+$M/s10+$M/s11+$M/s12:guards \
+  e5g_guards=$M/s16+$M/s10+$M/s11+$M/s12+$M/s13:guards \
   e7_guards=$R/s10+$R/s11+$R/s12+$R/s13+$R/s14+$R/s15+$R/s16:guards \
   e3_centre15=$R/s10+$R/s11+$R/s12:guards,centring_r=0.15 \
   e4_centre15=$R/s13+$R/s14+$R/s15+$R/s16:guards,centring_r=0.15 \
