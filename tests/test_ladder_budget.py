@@ -70,21 +70,24 @@ def test_ensemble_rung_trains_members_like_the_reused_rung(tmp_path, monkeypatch
 
 
 def test_the_recipes_are_the_ladders_rungs(monkeypatch):
-    """README and docs say `thrombojax train`'s default recipe is the ladder's walk_axis rung
-    (its best rung on both datasets), `--recipe history` its history_walk rung, `--recipe
-    rollout` its rotation rung, `--recipe robust` its robust rung (the dirspeed_last rungs'
-    recipe): the dicts must stay equal."""
+    """README and docs say `thrombojax train`'s default recipe, `room`, is the ladder's
+    follow_room30_last rung, `--recipe axis` its walk_axis rung, `--recipe history` its
+    history_walk rung, `--recipe rollout` its rotation rung, `--recipe robust` its robust rung
+    (the dirspeed_last rungs' recipe): the dicts must stay equal."""
     from thrombojax.train.recipes import DEFAULT_RECIPE, recipe
 
     ladder = _ladder(monkeypatch)
     rungs = {r.name: r for r in ladder.RUNGS}
-    assert rungs["walk_axis"].train == recipe(DEFAULT_RECIPE)
+    assert rungs["walk_axis"].train == recipe("axis")
     assert rungs["history_walk"].train == recipe("history")
     assert rungs["axis_alone"].reuse == "walk_axis" and not rungs["axis_alone"].guards
     assert rungs["rotation"].train == recipe("rollout")
     assert rungs["robust"].train == recipe("robust")
     last = rungs["dirspeed_last"]
     assert {**last.train, "select_by": "last"} == recipe("robust") and last.checkpoint == "last"
+    room = rungs["follow_room30_last"]
+    assert {**room.train, "select_by": "last"} == recipe("room") and room.checkpoint == "last"
+    assert DEFAULT_RECIPE == "room"
 
 
 def test_members_alone_reports_every_seed(tmp_path, monkeypatch):

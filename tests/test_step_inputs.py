@@ -191,7 +191,7 @@ def test_recipes():
     from thrombojax.train.config import TrainConfig
     from thrombojax.train.recipes import DEFAULT_RECIPE, recipe
 
-    assert DEFAULT_RECIPE == "axis" and recipe("study") == {}
+    assert DEFAULT_RECIPE == "room" and recipe("study") == {}
     assert {k: v for k, v in recipe("axis").items() if k not in recipe("history")} == {
         "axis_features": 2.0}
     assert all(recipe("axis")[k] == v for k, v in recipe("history").items())
@@ -204,6 +204,11 @@ def test_recipes():
         "wall_noise": 0.1, "wall_features": 0.5, "wall_signed": True, "history_noise": 0.02,
         "speed_noise": 0.1, "direction_noise": 0.1, "select_by": "last"}
     assert all(getattr(cfg, k) == v for k, v in recipe("history").items())
+    cfg = TrainConfig(**recipe("room"))
+    assert {k: v for k, v in recipe("room").items() if recipe("axis").get(k) != v} == {
+        "history": 1, "follow_axis": 2.0, "wall_features": 0.5, "wall_clot_mean": True,
+        "clot_mean_weight": 10.0, "speed_noise": 0.3, "select_by": "last"}
+    assert cfg.history == 1 and cfg.wall_clot_mean and cfg.follow_axis == 2.0
     with pytest.raises(ConfigError, match="unknown recipe"):
         recipe("fast")
 
@@ -220,9 +225,10 @@ def test_cli_offers_every_recipe():
 
 
 def test_cli_trains_with_the_default_recipe_and_reloads_the_step(tmp_path):
-    """`thrombojax train` without --config uses the history recipe (options above it); the
-    run records the frame and the wall cutoff; the loaded model steps as it trained; a
-    rollout runs through it."""
+    """`thrombojax train` without --config uses the default (room) recipe, options given on
+    the command line above it; the run records the frame and the wall cutoff; the loaded
+    model steps as it trained (the recipe's prior and history included); a rollout runs
+    through it."""
     from dataset_factory import train_tiny_cli
 
     from thrombojax.eval.report import rollout_run
@@ -232,8 +238,13 @@ def test_cli_trains_with_the_default_recipe_and_reloads_the_step(tmp_path):
                                "vessel", n_nodes=80)
     loaded = load_trained(run)
     cfg = loaded.run.train
-    assert (cfg.frame, cfg.history, cfg.noise_walk, cfg.rollout_steps) == ("vessel", 2, True, 1)
-    assert loaded.step.frame == "vessel" and loaded.step.history == 2
+    assert (cfg.frame, cfg.history, cfg.noise_walk, cfg.rollout_steps) == ("vessel", 1, True, 1)
+    assert (cfg.follow_axis, cfg.speed_noise, cfg.clot_mean_weight, cfg.select_by) == (
+        2.0, 0.3, 10.0, "last")
+    assert cfg.wall_features == 2.0  # the command line's, over the recipe's 0.5
+    assert loaded.step.frame == "vessel" and loaded.step.history == 1
+    assert loaded.step.prior_radius == pytest.approx(loaded.config["prior_radius"])
+    assert loaded.step.prior_radius > 0  # the recipe's vessel-following prior
     assert loaded.step.wall_cutoff == pytest.approx(loaded.config["wall_cutoff"])
     assert loaded.step.wall_cutoff > 0 and loaded.step.wall_clot_mean and cfg.wall_clot_mean
     assert loaded.run.train.axis_features == 2.0 and loaded.step.axis_radius > 0  # the default

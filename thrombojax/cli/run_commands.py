@@ -22,9 +22,10 @@ def _add_train(sub) -> None:
         description=(
             "Train a step-by-step surrogate: AdamW with linear warm-up then cosine decay, "
             "masked MSE on clot nodes, random rotations, optional node subsampling and "
-            "BaryCentricSampling, and by default the axis recipe on top (--recipe: the "
-            "step also reads the acceleration before t and its velocity along and across the "
-            "vessel's axis, random-walk input noise; '--recipe "
+            "BaryCentricSampling, and by default the room recipe on top (--recipe: the "
+            "step moves the clot along the vessel's axis and learns the rest from its "
+            "velocity along and across that axis, the nearby wall and the clot's room in the "
+            "vessel, under random-walk and speed noise; '--recipe "
             "rollout' a k-step loss with push-forward instead; '--recipe study' trains as the "
             "study did). Writes DIR/config.json, DIR/checkpoints/{best,last}, "
             "DIR/metrics.jsonl and DIR/loss.png. Options left out take the recipe's, the "
@@ -123,20 +124,25 @@ def _add_train(sub) -> None:
                    "--rollout-steps over this many epochs (default 0: k from the start)")
     # the names of thrombojax.train.recipes.RECIPES (not imported here: it loads jax; a test
     # keeps the two equal)
-    p.add_argument("--recipe", choices=("axis", "rollout", "history", "robust", "study"),
-                   help="a named set of "
-                   "training options under the explicit ones: 'axis' (the default without "
-                   "--config or --resume: 'history' plus the velocity split along and across "
-                   "the local vessel axis, --axis-features 2; the stability ladder's best rung "
-                   "on both datasets; at most 8,192 nodes per sample), 'history' (the step "
+    p.add_argument("--recipe", choices=("axis", "rollout", "history", "robust", "room",
+                                        "study"), help="a named set of "
+                   "training options under the explicit ones: 'room' (the default without "
+                   "--config or --resume: 'axis' without the history frame, plus the "
+                   "vessel-following prior, wall features at 0.5 r with the clot-wide room, "
+                   "the clot-wide error weighted 10x, speed noise 0.3, --select-by last; the "
+                   "best rollouts on ClotEntry, near the best on BendVessel and in make demo; "
+                   "its one step is worse than constant velocity; at most 8,192 nodes per "
+                   "sample), 'axis' ('history' plus "
+                   "the velocity split along and across the local vessel axis, --axis-features "
+                   "2; the default before, the best one step), 'history' (the step "
                    "also reads the acceleration before t, "
                    "--history 2, single-step loss, random-walk noise 0.01 r, rotations up to "
                    "pi), 'rollout' (noise "
                    "0.01 r, 1 push-forward step, a 3-step loss grown over 6 epochs, rotations "
                    "up to pi; four times the cost per epoch), 'robust' (history plus wall "
                    "noise 0.1 r with signed wall features, history noise 0.02 r, speed and "
-                   "direction noise 0.1, --select-by last: the best on BendVessel with and "
-                   "without guards, worse than history on ClotEntry) or 'study' (the study's "
+                   "direction noise 0.1, --select-by last: better than history on BendVessel, "
+                   "worse on ClotEntry) or 'study' (the study's "
                    "single-step recipe, TrainConfig's defaults)")
     p.add_argument("--frame", choices=("global", "vessel"), help="frame of the learned step: "
                    "'vessel' works in the rigid vessel's principal axes (invariant to the "

@@ -1,6 +1,32 @@
 """Named training recipes: sets of :class:`~thrombojax.train.config.TrainConfig` fields.
 
-* ``"axis"`` (the default of ``thrombojax train`` and ``make demo``): ``history`` plus the
+* ``"room"`` (the default of ``thrombojax train`` and ``make demo``): ``axis`` without the
+  history frame (``history=1``) plus what made ClotEntry's rollouts follow the vessel: the
+  vessel-following prior (``follow_axis=2.0``: the step moves the clot along the vessel axis at
+  its speed and the model learns the rest), wall features cut off at 0.5 vessel radii with the
+  clot-wide mean of the clipped wall distance as one more input (``wall_clot_mean``: the
+  clot's room in the vessel, which sets its speed), the clot-wide error weighted 10x
+  (``clot_mean_weight``), speed noise 0.3 (the clot's input motion scaled by
+  ``1 + N(0, 0.3^2)``, the target unchanged) and the last epoch's checkpoint. The stability
+  ladder's ``follow_room30_last`` rung. Measured against ``axis`` (guarded unless said;
+  r = vessel radii, CV = constant velocity):
+
+  - ClotEntry: single 6-epoch seeds end 0.92-4.76 r off the held-out clots (``axis``, 4
+    epochs: 3.1 and 14.2 r), and five 2-epoch seeds as one ensemble 0.55-2.16 r over seven
+    draws, 1.41 r on average, none outside
+    (``experiments/results/ladder_budget/clotentry_speed_room/``, ``.../clotentry_five/``);
+  - ``make demo``, the same day and budget: 0.21x CV over the rollout, 3.04 r, where ``axis``
+    is worse than CV (1.08x, 3.43 r) (``experiments/results/demo/``);
+  - BendVessel's held-out simulations (seed 0, 28 minutes): closer on the way (0.12x CV
+    against 0.18x on the same data) but further at the end (2.60 r against 1.90 r), and alone
+    nearer (1.41 r against 1.91 r, 26 % of the clot outside at worst against 54 %)
+    (``experiments/results/ladder_budget/bendvessel_room/``).
+
+  Its one step is worse than CV (6.0x in BendVessel's rollout phase; ``axis`` 0.35x): the
+  step keeps a fifth of the speed it is shown and takes the rest from the vessel, so it lags
+  where a simulation's own speed differs from what the vessel tells. Its features need a
+  dense search: at most 8,192 nodes per sample (``--nodes-per-sample``).
+* ``"axis"`` (the default before ``room``): ``history`` plus the
   clot's velocity split along and across the local vessel axis (``axis_features=2.0``: the
   axis from the wall normals within about 2 vessel radii,
   :mod:`thrombojax.graph.vessel_axis`). The stability ladder's ``walk_axis`` rung: at the
@@ -82,11 +108,22 @@ RECIPES: types.MappingProxyType = types.MappingProxyType({
         "direction_noise": 0.1,
         "select_by": "last",
     }),
+    "room": types.MappingProxyType({
+        **_HISTORY,
+        "history": 1,
+        "axis_features": 2.0,
+        "follow_axis": 2.0,
+        "wall_features": 0.5,
+        "wall_clot_mean": True,
+        "clot_mean_weight": 10.0,
+        "speed_noise": 0.3,
+        "select_by": "last",
+    }),
     "study": types.MappingProxyType({}),
 })
 """Recipe name -> the TrainConfig fields it sets (read-only)."""
 
-DEFAULT_RECIPE: str = "axis"
+DEFAULT_RECIPE: str = "room"
 
 
 def recipe(name: str) -> dict:
