@@ -87,6 +87,7 @@ _HISTORY = {
     "history": 2,
     "noise_walk": True,
 }
+_AXIS = {**_HISTORY, "axis_features": 2.0}
 
 RECIPES: types.MappingProxyType = types.MappingProxyType({
     "rollout": types.MappingProxyType({
@@ -96,7 +97,7 @@ RECIPES: types.MappingProxyType = types.MappingProxyType({
         "curriculum_epochs": 6.0,
         "max_rotation": math.pi,
     }),
-    "axis": types.MappingProxyType({**_HISTORY, "axis_features": 2.0}),
+    "axis": types.MappingProxyType(dict(_AXIS)),
     "history": types.MappingProxyType(dict(_HISTORY)),
     "robust": types.MappingProxyType({
         **_HISTORY,
@@ -108,10 +109,9 @@ RECIPES: types.MappingProxyType = types.MappingProxyType({
         "direction_noise": 0.1,
         "select_by": "last",
     }),
-    "room": types.MappingProxyType({
-        **_HISTORY,
+    "room": types.MappingProxyType({  # `axis` without the history frame, plus:
+        **_AXIS,
         "history": 1,
-        "axis_features": 2.0,
         "follow_axis": 2.0,
         "wall_features": 0.5,
         "wall_clot_mean": True,
