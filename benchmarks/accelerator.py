@@ -51,7 +51,7 @@ from peer_common import CASE_LABELS, read_inputs, write_inputs  # noqa: E402
 from peer_jax import prepare  # noqa: E402
 
 from thrombojax.eval.tables import environment  # noqa: E402
-from thrombojax.io.outputs import atomic_write_text  # noqa: E402
+from thrombojax.io.outputs import atomic_write_text, refuse_targets  # noqa: E402
 
 PRECISIONS = ("F32_F32_F32", "default")
 STEP_PRECISIONS = ("TF32_TF32_F32", "BF16_BF16_F32")
@@ -166,8 +166,8 @@ def main(argv: list[str] | None = None) -> int:
                    help="measure nothing: join these runs' JSON results into --out")
     args = p.parse_args(argv)
     out = pathlib.Path(args.out) if args.out else None
-    if out is not None and out.exists() and not args.force:
-        raise SystemExit(f"accelerator: {out} exists; pass --force to replace it")
+    refuse_targets(p, (out, out.with_suffix(".json")) if out else (), force=args.force,
+                   inputs=args.merge or (), what="report")
     if args.merge:
         if out is None:
             raise SystemExit("accelerator: --merge needs --out")

@@ -46,7 +46,7 @@ import numpy as np
 
 from thrombojax.cli.allocator import reexec_script_with_tcmalloc
 from thrombojax.eval.tables import environment
-from thrombojax.io.outputs import atomic_write_text
+from thrombojax.io.outputs import atomic_write_text, refuse_targets
 from thrombojax.models import create_model, get_config
 from thrombojax.simulator.grid_step import AUTO_GRID_MIN_NODES, allocate_grid
 from thrombojax.simulator.step import make_step
@@ -204,8 +204,7 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--out", default=None, help="markdown file to write (atomically)")
     parser.add_argument("--force", action="store_true", help="replace an existing --out")
     args = parser.parse_args(argv)
-    if args.out and os.path.exists(args.out) and not args.force:
-        parser.error(f"{args.out} exists; pass --force to replace it")
+    refuse_targets(parser, (args.out,), force=args.force, what="report")
     if jax.default_backend() != "cpu":
         parser.error("this benchmark compares CPU compiler options; the default backend is "
                      f"{jax.default_backend()}")

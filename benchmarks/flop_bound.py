@@ -30,6 +30,7 @@ import jax.numpy as jnp
 
 from thrombojax.cli.allocator import reexec_script_with_tcmalloc
 from thrombojax.eval.tables import environment
+from thrombojax.io.outputs import refuse_targets
 from thrombojax.models import create_model, get_config
 from thrombojax.simulator.step import make_step
 from thrombojax.xla_options import cpu_compiler_options
@@ -84,8 +85,7 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--out", default=None, help="markdown file to write (atomically)")
     parser.add_argument("--force", action="store_true", help="replace an existing --out")
     args = parser.parse_args(argv)
-    if args.out and os.path.exists(args.out) and not args.force:
-        parser.error(f"{args.out} exists; pass --force to replace it")
+    refuse_targets(parser, (args.out,), force=args.force, what="report")
     out = report_header("benchmarks/flop_bound.py", environment())
     out += ["", "| model | nodes | step GFLOP (XLA count) | step ms (median) | step GFLOP/s | "
            "dense [E, H] x [H, H] GFLOP/s: XLA defaults / thrombojax's options | "

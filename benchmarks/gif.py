@@ -35,6 +35,7 @@ from matplotlib.animation import FuncAnimation, PillowWriter  # noqa: E402
 
 from thrombojax.eval.plots import animate_rollout, rollout_figure  # noqa: E402
 from thrombojax.eval.tables import environment  # noqa: E402
+from thrombojax.io.outputs import refuse_targets  # noqa: E402
 from thrombojax.types import NodeType  # noqa: E402
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
@@ -69,9 +70,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--wall", type=int, default=6000)
     parser.add_argument("--rounds", type=int, default=3)
     parser.add_argument("--out", help="write the report (markdown) here")
+    parser.add_argument("--force", action="store_true", help="replace an existing --out")
     args = parser.parse_args(argv)
-    if args.out and Path(args.out).exists():
-        parser.error(f"{args.out} exists; remove it first (results are not overwritten)")
+    refuse_targets(parser, (args.out,), force=args.force, what="report")
     env = {**environment(), "matplotlib": matplotlib.__version__}
     pred, true, node_type = scene(args.frames, args.clot, args.wall)
     times: dict[str, list[float]] = {"thrombojax": [], "matplotlib": []}

@@ -37,7 +37,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import pathlib
 import sys
 
@@ -50,7 +49,7 @@ from models import _median_ms, synthetic_inputs  # noqa: E402
 from thrombojax.eval.tables import environment  # noqa: E402
 from thrombojax.graph.vessel_axis import vessel_axis  # noqa: E402
 from thrombojax.graph.wall_nodes import local_wall_plane, wall_node_features  # noqa: E402
-from thrombojax.io.outputs import atomic_write_text  # noqa: E402
+from thrombojax.io.outputs import atomic_write_text, refuse_targets  # noqa: E402
 from thrombojax.models import create_model, get_config  # noqa: E402
 from thrombojax.models.registry import identity_stats  # noqa: E402
 from thrombojax.simulator.rollout import rollout_jit  # noqa: E402
@@ -173,12 +172,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--size", choices=("small", "study", "tiny"), default="small",
                         help="the ladder's small MeshGraphNet (default), the study's, or the "
                         "tiny test model (a smoke run)")
-    parser.add_argument("--out", help="JSON file to write (refused if it exists)")
-    parser.add_argument("--md", help="markdown table to write (refused if it exists)")
+    parser.add_argument("--out", help="JSON file to write (refused if it exists, unless --force)")
+    parser.add_argument("--md",
+                        help="markdown table to write (refused if it exists, unless --force)")
+    parser.add_argument("--force", action="store_true", help="replace an existing --out/--md")
     args = parser.parse_args(argv)
-    for path in (args.out, args.md):
-        if path and os.path.exists(path):
-            parser.error(f"{path} exists; remove it or choose another path")
+    refuse_targets(parser, (args.out, args.md), force=args.force, what="report")
     env = environment()
     print(" ".join(f"{k}={v}" for k, v in env.items()), flush=True)
     rows = []

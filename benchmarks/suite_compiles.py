@@ -210,11 +210,14 @@ def main(argv: list[str] | None = None) -> int:
                         help="the command of the recorded run, written into the report")
     parser.add_argument("--top", type=int, default=25, help="rows per table")
     parser.add_argument("--out", type=pathlib.Path, help="also write the report here")
+    parser.add_argument("--force", action="store_true", help="replace an existing --out")
     args = parser.parse_args(argv)
     sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))
     from thrombojax.eval.tables import environment
-    from thrombojax.io.outputs import atomic_write_text
+    from thrombojax.io.outputs import atomic_write_text, refuse_targets
 
+    refuse_targets(parser, (args.out,), force=args.force, what="report",
+                   inputs=[args.log] if args.log else ())
     env = environment()
     lines = ["# benchmarks/suite_compiles.py: XLA compilations of the test suite", "", "```",
              *[f"# {k}: {v}" for k, v in env.items()],
@@ -224,8 +227,6 @@ def main(argv: list[str] | None = None) -> int:
     text = "\n".join(lines) + "\n"
     print(text, end="")
     if args.out:
-        if args.out.exists():
-            raise SystemExit(f"suite_compiles: {args.out} exists; not replacing it")
         atomic_write_text(args.out, text)
     return 0
 

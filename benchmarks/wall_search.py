@@ -49,7 +49,7 @@ from models import _median_ms, synthetic_inputs  # noqa: E402
 
 from thrombojax.eval.tables import environment  # noqa: E402
 from thrombojax.graph import wall_nodes  # noqa: E402
-from thrombojax.io.outputs import atomic_write_text  # noqa: E402
+from thrombojax.io.outputs import atomic_write_text, refuse_targets  # noqa: E402
 
 
 def _old_smallest_first(key, k):
@@ -160,15 +160,14 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--steps", type=int, default=25, help="training steps per run")
     p.add_argument("--warm", type=int, default=5, help="first steps of a run not timed")
     p.add_argument("--rounds", type=int, default=2, help="runs per variant, alternating")
-    p.add_argument("--out", help="JSON file to write (refused if it exists)")
-    p.add_argument("--md", help="markdown table to write (refused if it exists)")
+    p.add_argument("--out", help="JSON file to write (refused if it exists, unless --force)")
+    p.add_argument("--md", help="markdown table to write (refused if it exists, unless --force)")
+    p.add_argument("--force", action="store_true", help="replace an existing --out/--md")
     p.add_argument("--worker", choices=sorted(VARIANTS), help=argparse.SUPPRESS)
     a = p.parse_args(argv)
     if bool(a.dataset) != bool(a.config):
         p.error("--dataset and --config go together")
-    for path in (a.out, a.md):
-        if path and os.path.exists(path):
-            p.error(f"{path} exists; remove it or choose another path")
+    refuse_targets(p, (a.out, a.md), force=a.force, what="report")
     if a.worker:
         _worker(a.worker, a.dataset, a.config, a.steps, a.warm)
         return 0

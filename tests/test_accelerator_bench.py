@@ -20,7 +20,7 @@ def _run(out, *extra):
                              "--step-precisions", "TF32_TF32_F32", "--out", str(out), *extra])
 
 
-def test_tiny_run_writes_report_records_errors_and_refuses_to_overwrite(tmp_path):
+def test_tiny_run_writes_report_records_errors_and_refuses_to_overwrite(tmp_path, capsys):
     out = tmp_path / "acc.md"
     assert _run(out) == 0
     got = json.loads(out.with_suffix(".json").read_text())
@@ -34,8 +34,14 @@ def test_tiny_run_writes_report_records_errors_and_refuses_to_overwrite(tmp_path
     if got["env"]["device"].startswith("cpu"):
         assert "error" in rows[("step", "TF32_TF32_F32")]
         assert "| mgn | TF32_TF32_F32 | error | error |" in text
-    with pytest.raises(SystemExit, match="--force"):
+    capsys.readouterr()
+    with pytest.raises(SystemExit):
         _run(out)
+    assert "acc.md: report already exists; pass --force to replace it" in capsys.readouterr().err
+    out.unlink()  # the .json beside it still holds timings: refused too
+    with pytest.raises(SystemExit):
+        _run(out)
+    assert "acc.json: report already exists" in capsys.readouterr().err
 
 
 def test_merge_joins_runs_into_one_table(tmp_path):
@@ -54,3 +60,7 @@ def test_merge_joins_runs_into_one_table(tmp_path):
     assert "run 1:" in text and "`run1`" in text
     assert "| mgn | F32_F32_F32 | 2.00 |" in text and "| mgn | BF16_BF16_F32 | 3.00 |" in text
     assert [r["run"] for r in json.loads(out.with_suffix(".json").read_text())["rows"]] == [1, 2]
+    with pytest.raises(SystemExit):  # a merged run's own JSON is never the target, even forced
+        accelerator.main(["--merge", str(tmp_path / "0.json"), "--out", str(tmp_path / "0.md"),
+                          "--force"])
+    assert (tmp_path / "0.json").read_text().startswith('{"env"')

@@ -3,6 +3,7 @@ collision-free names, and kill -9 never leaves a broken file at a target path.""
 
 from __future__ import annotations
 
+import argparse
 import hashlib
 import os
 import random
@@ -26,6 +27,7 @@ from thrombojax.io.outputs import (
     check_target,
     clean_temporaries,
     fresh_owned_folder,
+    refuse_targets,
     safe_stem,
     safe_stems,
 )
@@ -105,6 +107,26 @@ def test_existing_outputs_need_force_and_inputs_never_replaced(tmp_path):
     os.link(data, link)
     with pytest.raises(OutputError, match="input"):
         check_target(link, inputs=[data], force=True)
+
+
+def test_refuse_targets_is_a_usage_error_naming_the_file_and_force(tmp_path, capsys):
+    """The benchmark scripts' check (thrombojax.io.outputs.refuse_targets): options not given
+    are skipped, an existing report is refused unless forced, two options naming one file
+    are refused even forced, and an input never."""
+    parser = argparse.ArgumentParser(prog="bench")
+    report, data = tmp_path / "r.md", tmp_path / "in.json"
+    assert refuse_targets(parser, (None, report)) == [report]
+    report.write_text("weeks of timings")
+    data.write_text("{}")
+    for targets, kwargs, message in [
+            ((report,), {}, "r.md: report already exists; pass --force to replace it"),
+            ((report, tmp_path / "R.md"), {"force": True}, "share this file name"),
+            ((data,), {"force": True, "inputs": [data]}, "would overwrite the input")]:
+        with pytest.raises(SystemExit) as exc:
+            refuse_targets(parser, targets, what="report", **kwargs)
+        assert exc.value.code == 2 and message in capsys.readouterr().err
+    assert refuse_targets(parser, (report,), force=True) == [report]
+    assert report.read_text() == "weeks of timings"
 
 
 def test_import_refuses_to_write_over_its_source(tmp_path):

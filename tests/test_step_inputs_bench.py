@@ -36,3 +36,6 @@ def test_tiny_run_times_every_step_and_part_and_refuses_to_overwrite(tmp_path):
     with pytest.raises(SystemExit):
         step_inputs.main(argv)  # both files exist: refused, nothing rewritten
     assert json.loads(out.read_text()) == got
+    assert step_inputs.main([*argv, "--force"]) == 0  # --force replaces both
+    with pytest.raises(SystemExit):  # one file for both reports: refused even forced
+        step_inputs.main([*argv[:-2], "--md", str(out), "--force"])

@@ -61,6 +61,10 @@ def test_records_every_compile_by_program_and_test_and_reports_them(tmp_path):
     with pytest.raises(SystemExit):
         suite_compiles.main(argv)  # the report exists: refused
     assert out.read_text() == text
+    with pytest.raises(SystemExit):  # the run's log is an input: refused even forced
+        suite_compiles.main([*argv[:3], "--out", str(log), "--force"])
+    assert log.read_text() == proc.stdout
+    assert suite_compiles.main([*argv, "--force"]) == 0
 
 
 def test_refuses_to_run_without_a_records_folder(tmp_path):

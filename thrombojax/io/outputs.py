@@ -37,6 +37,7 @@ __all__ = [
     "safe_stems",
     "check_target",
     "check_targets",
+    "refuse_targets",
     "atomic_path",
     "atomic_write_text",
     "clean_temporaries",
@@ -140,6 +141,24 @@ def check_targets(targets: Iterable[str | os.PathLike], **kwargs) -> list[Path]:
                               f"({seen[key].name}, {path.name})")
         seen[key] = path
     return out
+
+
+def refuse_targets(parser, targets: Iterable, **kwargs) -> list[Path]:
+    """:func:`check_targets` for a script's ``argparse`` options: ``None`` targets (options not
+    given) are skipped, and a refusal becomes ``parser.error`` (usage, exit status 2).
+
+    Args:
+        parser: the script's :class:`argparse.ArgumentParser`.
+        targets: the output paths, ``None`` where the option was not given.
+        **kwargs: ``inputs``, ``force`` and ``what`` of :func:`check_target`.
+    Returns:
+        The given targets as :class:`~pathlib.Path`.
+    """
+    try:
+        return check_targets([t for t in targets if t is not None], **kwargs)
+    except OutputError as err:
+        parser.error(str(err))
+        raise  # parser.error exits; a parser that returns still refuses
 
 
 def input_files(sources: Iterable) -> list[Path]:
