@@ -57,4 +57,5 @@ python $CE --nodes 2048 --sims-kind "validation simulation" $OUT/validation data
 # from the rows' JSONs, with the earlier room-recipe rows of the same split beside them
 python $OUT/track.py $OUT/track.md $OUT/heldout $OUT/validation \
     experiments/results/ladder_budget/clotentry_five/heldout \
-    experiments/results/ladder_budget/clotentry_five/validation
+    experiments/results/ladder_budget/clotentry_five/validation \
+    --scan experiments/results --sim clotentry_009
