@@ -7,14 +7,14 @@
 # clotentry_008/009, validation clotentry_007, 2,048 nodes per sample), plus --rest-edges:
 C=experiments/results/ladder_budget/clotentry_budget_members/training/seed_13/config.json
 W=/work/exp/s84   # checkpoints are not committed
-train() {  # LABEL SEED EXTRA...
-    label=$1 seed=$2; shift 2
-    thrombojax train --config $C --dataset data/clotentry.h5 --epochs 6 --warmup-epochs 2 \
-        --seed "$seed" --select-by last --out $W/$label --quiet "$@"
-}
-# two side by side, then the next two side by side
-train rest_s0 0 --rest-edges & train rest_s1 1 --rest-edges & wait
-train rest_s2 2 --rest-edges & train rest_s3 3 --rest-edges & wait
+# two side by side (seeds 0 and 1), then the next two side by side (seeds 2 and 3)
+for pair in "0 1" "2 3"; do
+    for seed in $pair; do
+        thrombojax train --config $C --dataset data/clotentry.h5 --epochs 6 --warmup-epochs 2 \
+            --seed $seed --select-by last --out $W/rest_s$seed --quiet --rest-edges &
+    done
+    wait
+done
 CE=experiments/results/ladder_budget/bendvessel_shapes/cross_eval.py
 OUT=experiments/results/ladder_budget/clotentry_rest
 evaluate() {  # LABEL: held out alone and guarded, validation guarded, teacher-forced (two at once)
