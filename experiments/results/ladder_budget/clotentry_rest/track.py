@@ -29,7 +29,8 @@ SHOWN = 10
 
 
 def block_means(values: list[float]) -> list[float]:
-    """Means of ``values`` over ``BLOCKS`` equal consecutive blocks (the last takes the rest)."""
+    """Means of ``values`` over ``BLOCKS`` consecutive blocks (``np.array_split``: equal, or
+    the first ones a step longer)."""
     parts = np.array_split(np.asarray(values, np.float64), BLOCKS)
     return [float(p.mean()) for p in parts]
 
