@@ -43,6 +43,9 @@ def rows(folder: pathlib.Path) -> list[str]:
         sys.exit(f"{folder}: no row JSONs (cross_eval.py's <label>.json) to read")
     for path in paths:
         result = json.loads(path.read_text())
+        if not isinstance(result, dict) or not isinstance(result.get("simulations"), dict):
+            sys.exit(f"{path}: not a cross_eval.py row (no 'simulations'); keep only row JSONs "
+                     "in the folder")
         for name, sim in result["simulations"].items():
             try:
                 track = np.asarray(sim["centroid_per_step_r"], np.float64)
