@@ -56,7 +56,7 @@ def rows(folder: pathlib.Path) -> list[str]:
             worst = int(np.argmax(track))
             speeds = " / ".join(f"{m:.3f} ({t:.3f})" for m, t in
                                 zip(block_means(model), block_means(truth), strict=True))
-            lines.append(f"| {folder.name} | {path.stem} | {name} | "
+            lines.append(f"| {folder.parent.name}/{folder.name} | {path.stem} | {name} | "
                          f"{sim['final_centroid_r']:.2f} | {track[worst]:.2f} (step {worst + 1}) "
                          f"| {speeds} |")
     return lines
