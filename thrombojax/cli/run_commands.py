@@ -111,6 +111,11 @@ def _add_train(sub) -> None:
                    "through the vessel wall than the true one (in units of the normalised "
                    "error), so the model pays more for an outward error than an inward one "
                    "(docs/rollouts.md has what it measured; default 0: off)")
+    p.add_argument("--average-weights", type=NN_FLOAT, metavar="SHARE", help="weight "
+                   "averaging: the model is the mean of the weights after each of the last "
+                   "SHARE (0-1) of the training steps (stochastic weight averaging over the "
+                   "tail of the learning-rate decay); validation and checkpoints use the mean "
+                   "(default 0: off, the last weights)")
     p.add_argument("--seed", type=NN_INT, help="seed of initialisation, data order, augmentations")
     p.add_argument("--skip-frames", type=NN_INT, help="first frames never used as frame t of a "
                    "window (default 0: every window)")
@@ -220,7 +225,8 @@ def _run_train(args) -> int:
              "curriculum_epochs", "frame", "wall_features", "history", "noise_walk",
              "stop_history_gradient", "noise_shared", "wall_noise", "wall_signed",
              "wall_clot_mean", "history_noise", "speed_noise", "direction_noise", "swell_noise",
-             "stretch_noise", "time_scale", "clot_mean_weight", "wall_loss_weight", "select_by",
+             "stretch_noise", "time_scale", "clot_mean_weight", "wall_loss_weight",
+             "average_weights", "select_by",
              "axis_features", "follow_axis", "lateral_hold", "outlet_features",
              "shape_features", "clearance_features", "section_features", "rest_edges",
              "init_from", "init_which")

@@ -50,6 +50,7 @@ _RULES: dict[str, tuple[str, float, bool, bool]] = {
     "time_scale": ("float", 1.0, True, False),
     "clot_mean_weight": ("float", 0.0, True, False),
     "wall_loss_weight": ("float", 0.0, True, False),
+    "average_weights": ("float", 0.0, True, False),
     "seed": ("int", 0, True, False),
     "split_seed": ("int", 0, True, False),
     "n_val": ("int", 0, True, False),
@@ -63,8 +64,9 @@ _RULES: dict[str, tuple[str, float, bool, bool]] = {
 }
 
 
-_HIGH: dict[str, float] = {"noise_shared": 1.0}
-"""Inclusive upper bounds of the fields that have one (``noise_shared``: a share of a variance)."""
+_HIGH: dict[str, float] = {"noise_shared": 1.0, "average_weights": 1.0}
+"""Inclusive upper bounds of the fields that have one (``noise_shared``: a share of a variance;
+``average_weights``: a share of the training steps)."""
 
 
 def _option(name: str) -> str:

@@ -108,6 +108,12 @@ class TrainConfig:
             (:mod:`thrombojax.train.wall_loss`): the model pays more for an outward error than
             for an inward one (what it did to rollouts: ``docs/rollouts.md``). ``train_loss``
             includes it, ``val_loss`` does not (0: off).
+        average_weights: weight averaging, a share in [0, 1] of the training's optimiser
+            steps: the model is the plain mean of the weights after each of the last
+            ``round(share x steps)`` steps (stochastic weight averaging, Izmailov et al. 2018,
+            over the tail of the cosine decay); it is what validation measures and checkpoints
+            hold, the optimiser's own weights travel in the checkpoint for ``--resume``
+            (:func:`thrombojax.train.step.average_weights`; 0: off).
         seed: initialisation, data order, augmentations.
         split_seed: which simulations are validation / test.
         n_val, n_test: simulations held out for validation / test.
@@ -209,6 +215,7 @@ class TrainConfig:
     time_scale: float = 1.0
     clot_mean_weight: float = 0.0
     wall_loss_weight: float = 0.0
+    average_weights: float = 0.0
     seed: int = 0
     split_seed: int = 0
     n_val: int = 2

@@ -247,7 +247,8 @@ def train(
                         shape_radius=cfg.shape_features * radius, rest_edges=cfg.rest_edges,
                         clearance_radius=cfg.clearance_features * radius,
                         section_radius=cfg.section_features * radius)
-    state = init_state(step_fn, tx, init_key, batch_of(plan_of(epoch=0)[0]))
+    state = init_state(step_fn, tx, init_key, batch_of(plan_of(epoch=0)[0]),
+                       average=cfg.average_weights > 0)
     if cfg.init_from and not resume:  # the weights of another run (fine-tuning)
         state = warm_start(state, tx, cfg.init_from, cfg.init_which, model_name)
     run_config = {
@@ -298,7 +299,9 @@ def train(
                                              time_scale=cfg.time_scale, k=k,
                                              pushforward=cfg.pushforward_steps,
                                              clot_mean_weight=cfg.clot_mean_weight,
-                                             wall_loss_weight=cfg.wall_loss_weight)
+                                             wall_loss_weight=cfg.wall_loss_weight,
+                                             average_from=total_steps - round(
+                                                 cfg.average_weights * total_steps))
         return train_steps[k]
 
     eval_step = make_eval_step(step_fn, stats, k=cfg.rollout_steps)
@@ -370,7 +373,7 @@ def train(
                     raise TrainingDivergedError(f"{err}; not saved, the last good checkpoint is "
                                                 f"kept in {ckpt / 'last'}") from err
                 if val_rollouts is not None:  # a diverged rollout is a result (None), not NaN
-                    record |= val_rollouts(state.params)
+                    record |= val_rollouts(state.model_params)
                 append_log(out_dir, record)
                 score = epoch_score(record, cfg.select_by)
                 acc = np.zeros(3)

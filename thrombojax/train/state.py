@@ -9,8 +9,9 @@ Run directory layout (``docs/architecture.md``)::
     run_dir/metrics.jsonl            one JSON object per epoch (and the NaN-guard event, if any)
     run_dir/loss.png                 loss curves, written at the end
 
-A checkpoint has three orbax items: ``params`` (the model variables), ``train`` (optimiser state,
-step and RNG key data) and ``meta`` (JSON: epoch, position in the epoch's data order, best
+A checkpoint has three orbax items: ``params`` (the model variables: with weight averaging, the
+averaged ones), ``train`` (optimiser state, step, RNG key data and, with weight averaging, the
+optimiser's own iterate) and ``meta`` (JSON: epoch, position in the epoch's data order, best
 validation metric, and the same config / stats / scaling as ``config.json``), so one checkpoint
 directory is enough to restore a model. Orbax writes each checkpoint to a temporary directory and
 renames it when complete, so a run killed while saving keeps its previous checkpoint.
@@ -59,13 +60,22 @@ class TrainState:
 
     Attributes:
         step: ``[]`` int32 optimiser steps done.
-        params: model variables.
+        params: model variables (the optimiser's iterate).
         opt_state: optax state.
+        average: with weight averaging (``TrainConfig.average_weights``), the running mean of
+            ``params`` over the averaged steps, the model a checkpoint holds, validates and
+            loads (:attr:`model_params`); ``None`` without it.
     """
 
     step: jax.Array
     params: Any
     opt_state: Any
+    average: Any = None
+
+    @property
+    def model_params(self) -> Any:
+        """The weights of the model this state stands for: the average when there is one."""
+        return self.params if self.average is None else self.average
 
 
 @dataclasses.dataclass(frozen=True)
@@ -129,13 +139,15 @@ def save_checkpoint(directory: str | pathlib.Path, state: TrainState, rng: jax.A
     """
     step = int(jax.device_get(state.step))
     train = {"opt_state": state.opt_state, "step": state.step, "rng": rng}
+    if state.average is not None:  # the model is the average; the iterate is for resuming
+        train["params"] = state.params
     with _manager(pathlib.Path(directory)) as mngr:
         if step in mngr.all_steps():  # re-saving after a resume: replace it
             mngr.delete(step)
         mngr.save(
             step,
             args=ocp.args.Composite(
-                params=ocp.args.StandardSave(state.params),
+                params=ocp.args.StandardSave(state.model_params),
                 train=ocp.args.StandardSave(train),
                 meta=ocp.args.JsonSave(meta),
             ),
@@ -180,16 +192,22 @@ def restore_checkpoint(
             )
             return jax.tree.map(jnp.asarray, out["params"]), None, dict(out["meta"])
         train_target = {"opt_state": target.opt_state, "step": target.step, "rng": rng_target}
+        if target.average is not None:
+            train_target["params"] = target.params
         out = mngr.restore(
             step,
             args=ocp.args.Composite(
-                params=ocp.args.StandardRestore(target.params),
+                params=ocp.args.StandardRestore(target.model_params),
                 train=ocp.args.StandardRestore(train_target),
                 meta=ocp.args.JsonRestore(),
             ),
         )
     train = out["train"]
-    state = TrainState(step=train["step"], params=out["params"], opt_state=train["opt_state"])
+    if target.average is None:
+        state = TrainState(step=train["step"], params=out["params"], opt_state=train["opt_state"])
+    else:
+        state = TrainState(step=train["step"], params=train["params"],
+                           opt_state=train["opt_state"], average=out["params"])
     return state, train["rng"], dict(out["meta"])
 
 
@@ -298,7 +316,8 @@ def warm_start(state: TrainState, tx: Any, run_dir: str | pathlib.Path, which: s
                                       for k in diff))
     params = jax.tree.map(lambda x, like: jnp.asarray(x, like.dtype), trained.params,
                           state.params)
-    return TrainState(step=jnp.zeros((), jnp.int32), params=params, opt_state=tx.init(params))
+    return TrainState(step=jnp.zeros((), jnp.int32), params=params, opt_state=tx.init(params),
+                      average=None if state.average is None else jax.tree.map(jnp.copy, params))
 
 
 def append_log(out_dir: pathlib.Path, record: dict) -> None:

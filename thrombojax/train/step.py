@@ -66,6 +66,7 @@ __all__ = [
     "batch_loss",
     "make_train_step",
     "make_eval_step",
+    "average_weights",
     "init_state",
 ]
 
@@ -296,6 +297,7 @@ def make_train_step(
     flat_batch: bool = False,
     clot_mean_weight: float = 0.0,
     wall_loss_weight: float = 0.0,
+    average_from: int | None = None,
 ) -> Callable[[TrainState, Any, jax.Array], tuple[TrainState, dict]]:
     """Build the jitted ``train_step(state, batch, rng) -> (state, metrics)``.
 
@@ -314,6 +316,9 @@ def make_train_step(
         flat_batch: the batch as one flat graph where the model allows it (:func:`batch_loss`).
         clot_mean_weight: extra weight of the clot-wide error in the loss (:func:`batch_loss`).
         wall_loss_weight: weight of the wall term in the loss (:func:`batch_loss`).
+        average_from: with a state that carries an ``average`` (weight averaging), the number
+            of steps done before the first averaged one: until then the average follows the
+            weights, from then on it is their running mean (:func:`average_weights`).
     Returns:
         The jitted step. ``metrics`` adds ``grad_norm`` and ``lr``-independent scalars.
     """
@@ -338,11 +343,32 @@ def make_train_step(
         updates, opt_state = tx.update(grads, state.opt_state, state.params)
         params = optax.apply_updates(state.params, updates)
         metrics = dict(metrics, grad_norm=optax.tree.norm(grads))
-        new = TrainState(step=state.step + 1, params=params, opt_state=opt_state)
+        average = (None if state.average is None else
+                   average_weights(state.average, params, state.step + 1, average_from or 0))
+        new = TrainState(step=state.step + 1, params=params, opt_state=opt_state, average=average)
         return new, metrics
 
     return xla_jit(step, model=getattr(learned.model, "name", None), train=True,
                    donate_argnums=(0,) if donate else ())
+
+
+def average_weights(average: Any, params: Any, steps_done: jax.Array, average_from: int) -> Any:
+    """The running mean of the weights after a step (stochastic weight averaging, Izmailov et
+    al. 2018, here over the tail of the cosine decay). Jittable.
+
+    Args:
+        average: the mean so far; params: the weights after the step.
+        steps_done: optimiser steps done, this one included.
+        average_from: steps done before the first averaged one.
+    Returns:
+        ``params`` itself up to step ``average_from + 1``, then ``average + (params - average) /
+        n`` with ``n = steps_done - average_from`` the steps averaged: the plain mean of the
+        weights after each of those steps.
+    """
+    n = steps_done - average_from
+    return jax.tree.map(
+        lambda a, p: jnp.where(n <= 1, p, a + (p - a) / jnp.maximum(n, 1).astype(a.dtype)),
+        average, params)
 
 
 def make_eval_step(
@@ -364,13 +390,15 @@ def make_eval_step(
 
 
 def init_state(
-    model: Surrogate | LearnedStep, tx: optax.GradientTransformation, rng: jax.Array, batch: Any
+    model: Surrogate | LearnedStep, tx: optax.GradientTransformation, rng: jax.Array, batch: Any,
+    *, average: bool = False,
 ) -> TrainState:
     """Initialise the parameters on the first sample of ``batch`` and the optimiser state.
 
     Args:
         model: the surrogate (or its learned step). tx: the optimiser. rng: PRNG key.
         batch: a host :class:`thrombojax.data.batching.Batch` (its first sample is used).
+        average: keep a running average of the weights (it starts as the weights).
     Returns:
         A :class:`TrainState` at step 0.
     """
@@ -379,4 +407,5 @@ def init_state(
     rest, frames = (frames[0], frames[1:]) if step.rest_edges else (None, frames)
     params = step.init(rng, step.previous(frames, h, rest), frames[h], batch.node_type[0],
                        batch.mask[0])
-    return TrainState(step=jnp.zeros((), jnp.int32), params=params, opt_state=tx.init(params))
+    return TrainState(step=jnp.zeros((), jnp.int32), params=params, opt_state=tx.init(params),
+                      average=jax.tree.map(jnp.copy, params) if average else None)

@@ -218,7 +218,7 @@ def end_epoch_record(epoch, step, acc, val_batches, eval_step, state, mesh, lr,
     if val_batches:
         tot = np.zeros(3)
         for batch in val_batches:
-            m = jax.device_get(eval_step(state.params, shard_batch(batch, mesh)))
+            m = jax.device_get(eval_step(state.model_params, shard_batch(batch, mesh)))
             tot += np.array([m["loss"], m["mse"], 1.0]) * float(m["nodes"])
         record["val_loss"] = tot[0] / max(tot[2], 1.0)
         record["val_mse"] = tot[1] / max(tot[2], 1.0)
