@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from thrombojax.errors import ConfigError
+from thrombojax.train.averaging import average_weights
 from thrombojax.train.config import TrainConfig
-from thrombojax.train.step import average_weights
 
 
 def _leaves(tree):
@@ -51,12 +51,12 @@ def test_the_model_is_the_mean_of_the_last_steps_and_resumes_exactly(tmp_path):
                                                                 n_frames=8),
                          name="acc", source="test")
     kw = dict(tiny=True, epochs=2, batch_size=2, n_val=1, n_test=1, warmup_epochs=0.5,
-              lr=3e-3, checkpoint_every=1, progress=False)
+              lr=3e-3, progress=False)
 
     # the same training without averaging: its weights after every step
     plain = tmp_path / "plain"
     seen = []
-    train(data, "mgn", plain, **kw,
+    train(data, "mgn", plain, **kw, checkpoint_every=1,
           callback=lambda step, _: seen.append(
               restore_checkpoint(plain / "checkpoints" / "last")[0]))
     total = len(seen)
@@ -86,8 +86,9 @@ def test_the_model_is_the_mean_of_the_last_steps_and_resumes_exactly(tmp_path):
             raise KeyboardInterrupt
 
     with pytest.raises(KeyboardInterrupt):
-        train(data, "mgn", resumed, average_weights=0.5, **kw, callback=stop)
-    train(data, "mgn", resumed, resume=True, **{k: v for k, v in kw.items() if k != "epochs"})
+        train(data, "mgn", resumed, average_weights=0.5, **kw, checkpoint_every=cut,
+              callback=stop)
+    train(data, "mgn", resumed, resume=True, progress=False)
     again = load_trained(resumed, which="last")
     for got, ref in zip(_leaves(again.params), _leaves(model.params), strict=True):
         np.testing.assert_array_equal(got, ref)

@@ -113,7 +113,7 @@ class TrainConfig:
             ``round(share x steps)`` steps (stochastic weight averaging, Izmailov et al. 2018,
             over the tail of the cosine decay); it is what validation measures and checkpoints
             hold, the optimiser's own weights travel in the checkpoint for ``--resume``
-            (:func:`thrombojax.train.step.average_weights`; 0: off).
+            (:func:`thrombojax.train.averaging.average_weights`; 0: off).
         seed: initialisation, data order, augmentations.
         split_seed: which simulations are validation / test.
         n_val, n_test: simulations held out for validation / test.

@@ -45,6 +45,7 @@ from jax.sharding import PartitionSpec as P
 from thrombojax.models.registry import Surrogate
 from thrombojax.simulator.flat import FlatStep, flat_batch_ok
 from thrombojax.simulator.step import LearnedStep, make_step
+from thrombojax.train.averaging import average_weights
 from thrombojax.train.loss import flat_window_loss_terms, window_loss_terms
 from thrombojax.train.noise import (
     add_direction_noise,
@@ -66,7 +67,6 @@ __all__ = [
     "batch_loss",
     "make_train_step",
     "make_eval_step",
-    "average_weights",
     "init_state",
 ]
 
@@ -350,25 +350,6 @@ def make_train_step(
 
     return xla_jit(step, model=getattr(learned.model, "name", None), train=True,
                    donate_argnums=(0,) if donate else ())
-
-
-def average_weights(average: Any, params: Any, steps_done: jax.Array, average_from: int) -> Any:
-    """The running mean of the weights after a step (stochastic weight averaging, Izmailov et
-    al. 2018, here over the tail of the cosine decay). Jittable.
-
-    Args:
-        average: the mean so far; params: the weights after the step.
-        steps_done: optimiser steps done, this one included.
-        average_from: steps done before the first averaged one.
-    Returns:
-        ``params`` itself up to step ``average_from + 1``, then ``average + (params - average) /
-        n`` with ``n = steps_done - average_from`` the steps averaged: the plain mean of the
-        weights after each of those steps.
-    """
-    n = steps_done - average_from
-    return jax.tree.map(
-        lambda a, p: jnp.where(n <= 1, p, a + (p - a) / jnp.maximum(n, 1).astype(a.dtype)),
-        average, params)
 
 
 def make_eval_step(
