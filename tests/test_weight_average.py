@@ -70,8 +70,8 @@ def test_the_model_is_the_mean_of_the_last_steps_and_resumes_exactly(tmp_path):
     for got, ref in zip(_leaves(model.params), want, strict=True):
         np.testing.assert_allclose(got, ref, rtol=1e-5, atol=1e-6)
     # averaging does not change the training: the optimiser's weights are the plain run's
-    meta_train = _iterate(avg_dir, model.params)
-    for got, ref in zip(_leaves(meta_train), _leaves(seen[-1]), strict=True):
+    iterate = _iterate(avg_dir)
+    for got, ref in zip(_leaves(iterate), _leaves(seen[-1]), strict=True):
         np.testing.assert_array_equal(got, ref)
     # and the mean is a different model from the last weights
     assert max(float(np.abs(a - b).max())
@@ -94,7 +94,7 @@ def test_the_model_is_the_mean_of_the_last_steps_and_resumes_exactly(tmp_path):
         np.testing.assert_array_equal(got, ref)
 
 
-def _iterate(run_dir, like):
+def _iterate(run_dir):
     """The optimiser's own weights stored in a run's last checkpoint (weight averaging on)."""
     import orbax.checkpoint as ocp
 
