@@ -97,19 +97,21 @@ def _stretch_carry_after_training(shape_radius: float) -> float:
     """The tiny step (with the shape features when ``shape_radius > 0``) trained with stretch
     noise 0.3 on clots that are random clouds of nodes
     (:func:`dataset_factory.stretch_carry_after_training` on
-    :func:`dataset_factory.ring_clot_window`): the share of a 5 % stretch it keeps."""
+    :func:`dataset_factory.ring_clot_window`, 400 Adam steps): the share of a 5 % stretch it
+    keeps."""
     from dataset_factory import ring_clot_window, stretch_carry_after_training
     from test_speed_noise import STATS
 
     step = make_step(create_model("mgn", get_config("mgn", tiny=True, max_neighbors=8,
                                                     radius=0.45)), shape_radius=shape_radius)
-    return stretch_carry_after_training(step, ring_clot_window, STATS, stretch_noise=0.3)
+    return stretch_carry_after_training(step, ring_clot_window, STATS, stretch_noise=0.3,
+                                        steps=400)
 
 
 def test_shape_features_let_a_model_see_and_take_back_a_stretch():
     """Fails without the features: on a random cloud of nodes (no regular edges to read a
     stretch from), the tiny model trained with stretch noise keeps a stretch it is given (0.98
     when written); with the clot's length and each node's place as inputs it takes back about
-    half of it (0.56)."""
+    half of it (0.53 after 400 steps)."""
     assert _stretch_carry_after_training(0.0) > 0.9
     assert _stretch_carry_after_training(0.3) < 0.75

@@ -164,7 +164,7 @@ def test_overflow_flag_and_reallocation():
     tight = GridSpec(cell_size=0.1, grid_shape=(22, 22, 22), capacity=16)
     assert bool(radius_graph(x, 0.1, K, method="grid", grid=tight).overflow)
     # k-nearest mode with cells far too small: flagged, never a silent truncation
-    small = GridSpec(cell_size=0.005, grid_shape=(420, 420, 420), capacity=16)
+    small = GridSpec(cell_size=0.02, grid_shape=(105, 105, 105), capacity=16)
     assert bool(radius_graph(x, 0.1, K, method="grid", grid=small).overflow)
     nbrs, spec = radius_graph_checked(x, 0.1, K, method="grid", grid=tight, max_retries=4)
     assert spec.capacity > tight.capacity

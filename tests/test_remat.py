@@ -27,7 +27,8 @@ TOL = 1e-5
 
 CONFIGS = {
     "transolver": dict(radius=0.5, dropout=0.0),
-    "erwin": dict(radius=0.5, enc_depths=(3, 2), dec_depths=(3,)),  # pairs + an odd last block
+    # a scanned pair and an odd last block in the encoder, an odd block alone in the others
+    "erwin": dict(radius=0.5, enc_depths=(3, 1), dec_depths=(1,)),
 }
 
 
@@ -48,18 +49,40 @@ def _loss_fn(model, inputs, graph, **kwargs):
     return jax.jit(jax.value_and_grad(loss, has_aux=True))
 
 
+@pytest.fixture(scope="module")
+def cases():
+    """Per model, built once for the module: the plain and remat models, the padded cloud, its
+    graph (one jitted program, not op by op), the (perturbed) parameters, and the compiled
+    evaluation-mode loss gradients of both models (shared by the equality and the peak test)."""
+    built = {}
+
+    def case(name):
+        if name not in built:
+            plain, fast = _models(name)
+            inputs = random_model_input(N_REAL, N_PAD, seed=2)
+            graph = jax.jit(plain.build_graph)(inputs)
+            params = plain.init(jax.random.key(1), inputs, graph)
+            assert_trees_close(fast.init(jax.random.key(1), inputs, graph), params, tol=0.0)
+            params = perturbed(params)
+            compiled = {key: _loss_fn(model, inputs, graph).lower(params).compile()
+                        for key, model in (("plain", plain), ("remat", fast))}
+            built[name] = (plain, fast, inputs, graph, params, compiled)
+        return built[name]
+
+    return case
+
+
 @pytest.mark.parametrize("name", ["transolver", "erwin"])
 @pytest.mark.parametrize("train", [False, True], ids=["eval", "train"])
-def test_remat_equals_plain(name, train):
-    plain, fast = _models(name)
-    inputs = random_model_input(N_REAL, N_PAD, seed=2)
-    graph = plain.build_graph(inputs)
-    params = plain.init(jax.random.key(1), inputs, graph)
-    assert_trees_close(fast.init(jax.random.key(1), inputs, graph), params, tol=0.0)
-    params = perturbed(params)
-    kwargs = {"train": train, "rng": jax.random.key(3)} if train else {}
-    (loss_p, out_p), grads_p = _loss_fn(plain, inputs, graph, **kwargs)(params)
-    (loss_f, out_f), grads_f = _loss_fn(fast, inputs, graph, **kwargs)(params)
+def test_remat_equals_plain(name, train, cases):
+    plain, fast, inputs, graph, params, compiled = cases(name)
+    if train:
+        kwargs = {"train": True, "rng": jax.random.key(3)}
+        (loss_p, out_p), grads_p = _loss_fn(plain, inputs, graph, **kwargs)(params)
+        (loss_f, out_f), grads_f = _loss_fn(fast, inputs, graph, **kwargs)(params)
+    else:
+        (loss_p, out_p), grads_p = compiled["plain"](params)
+        (loss_f, out_f), grads_f = compiled["remat"](params)
     assert float(jnp.std(out_p)) > 0.0
     np.testing.assert_allclose(out_f, out_p, rtol=TOL, atol=TOL)
     np.testing.assert_allclose(loss_f, loss_p, rtol=TOL)
@@ -99,35 +122,39 @@ def test_remat_block_reuses_the_dropout_masks(key_fn):
     (val_p, grads_p), (val_f, grads_f) = grads(plain)(params, x), grads(fast)(params, x)
     np.testing.assert_allclose(val_f, val_p, rtol=TOL)
     assert_trees_close(grads_f, grads_p)
-    # dropout is active: another key gives another output
-    other = plain.apply(params, x, mask, key_fn(8))
-    assert float(jnp.max(jnp.abs(other - plain.apply(params, x, mask, key)))) > 1e-3
+    # dropout is active: another key gives another output (one jitted forward, two keys)
+    forward = jax.jit(plain.apply)
+    other = forward(params, x, mask, key_fn(8))
+    assert float(jnp.max(jnp.abs(other - forward(params, x, mask, key)))) > 1e-3
 
 
-def test_transolver_remat_trains_with_dropout():
+def test_transolver_remat_trains_with_dropout(cases):
     """The study path: remat with dropout draws one key per block; gradients are finite."""
     _, fast = _models("transolver", dropout=0.3)
-    inputs = random_model_input(N_REAL, N_PAD, seed=2)
-    graph = fast.build_graph(inputs)
+    _, _, inputs, graph, _, _ = cases("transolver")  # the same radius graph
     params = fast.init(jax.random.key(1), inputs, graph)
-    (loss_a, out_a), grads = _loss_fn(fast, inputs, graph, train=True,
-                                      rng=jax.random.key(3))(params)
-    (_, out_b), _ = _loss_fn(fast, inputs, graph, train=True, rng=jax.random.key(4))(params)
+    target = jnp.cos(jnp.arange(inputs.n_nodes * 3.0)).reshape(-1, 3)
+
+    @jax.jit  # one program for both keys
+    def loss_and_grads(params, rng):
+        def loss(params):
+            out = fast.apply(params, inputs, graph, train=True, rng=rng)
+            return jnp.sum(jnp.where(inputs.mask[:, None], out - target, 0.0) ** 2), out
+
+        return jax.value_and_grad(loss, has_aux=True)(params)
+
+    (loss_a, out_a), grads = loss_and_grads(params, jax.random.key(3))
+    (_, out_b), _ = loss_and_grads(params, jax.random.key(4))
     assert np.isfinite(float(loss_a))
-    assert all(bool(jnp.all(jnp.isfinite(g))) for g in jax.tree_util.tree_leaves(grads))
-    assert float(jnp.max(jnp.abs(out_a - out_b))) > 1e-4  # the masks depend on the key
+    assert all(np.isfinite(np.asarray(g)).all() for g in jax.tree_util.tree_leaves(grads))
+    diff = np.abs(np.asarray(out_a) - np.asarray(out_b))[np.asarray(inputs.mask)]
+    assert float(diff.max()) > 1e-4  # the masks depend on the key
 
 
 @pytest.mark.parametrize("name", ["transolver", "erwin"])
-def test_remat_lowers_the_compiled_peak(name):
-    """Rematerialisation is a memory lever: the compiled gradient's temporaries shrink."""
-    plain, fast = _models(name, hidden=16, max_neighbors=16)
-    inputs = random_model_input(200, 56, seed=2)
-    graph = plain.build_graph(inputs)
-    params = plain.init(jax.random.key(0), inputs, graph)
-
-    def temp_bytes(model):
-        grad = jax.grad(lambda p: jnp.sum(model.apply(p, inputs, graph) ** 2))
-        return jax.jit(grad).lower(params).compile().memory_analysis().temp_size_in_bytes
-
-    assert temp_bytes(fast) < temp_bytes(plain)
+def test_remat_lowers_the_compiled_peak(name, cases):
+    """Rematerialisation is a memory lever: the compiled gradient's temporaries shrink (the
+    equality test's programs, 40 + 8 nodes; measured Erwin 0.48x, Transolver 0.81x)."""
+    compiled = cases(name)[-1]
+    temp_bytes = {key: c.memory_analysis().temp_size_in_bytes for key, c in compiled.items()}
+    assert temp_bytes["remat"] < temp_bytes["plain"], temp_bytes

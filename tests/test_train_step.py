@@ -170,22 +170,26 @@ def solver_batch(tmp_path_factory):
 @pytest.mark.parametrize("name", TRAINABLE)
 def test_overfit_a_few_solver_samples(name, solver_batch):
     """Each tiny model drives its loss on three solver windows to <= 1 % of the start within
-    its step budget (checked every 50 steps; measured: MeshGraphNet there by about step 250
-    of 800, Transolver 550 of 1,500, Erwin 250 of 600)."""
+    its step budget (checked every 50 steps; measured: MeshGraphNet there by about step 200
+    of 800, Transolver 650 of 1,500, Erwin 200 of 600). The loss read is the training step's
+    own, of the weights it starts from: without noise or dropout it is the evaluation loss,
+    and no second program is compiled for it."""
     batch, stats = solver_batch
     overrides, steps, lr = OVERFIT.get(name, ({}, 1000, 3e-3))
-    model = create_model(name, get_config(name, tiny=True, **overrides))
+    config = get_config(name, tiny=True, **overrides)
+    assert getattr(config, "dropout", 0.0) == 0.0  # the training loss is the evaluation loss
+    model = create_model(name, config)
     tx = make_optimizer(make_schedule(lr, steps, steps // 10), weight_decay=0.0)
     state = init_state(model, tx, jax.random.PRNGKey(0), batch)
-    eval_step = make_eval_step(model, stats)
-    start = float(eval_step(state.params, batch)["loss"])
     train_step = make_train_step(model, tx, stats)
+    losses = []  # after 0, 50, 100, ... steps
     for i in range(steps):
-        state, _ = train_step(state, batch, jax.random.PRNGKey(i))
-        if (i + 1) % 50 == 0 and float(eval_step(state.params, batch)["loss"]) <= 0.01 * start:
-            break
-    end = float(eval_step(state.params, batch)["loss"])
-    assert end <= 0.01 * start, (name, i + 1, start, end)
+        state, metrics = train_step(state, batch, jax.random.PRNGKey(i))
+        if i % 50 == 0:
+            losses.append(float(metrics["loss"]))
+            if losses[-1] <= 0.01 * losses[0]:
+                break
+    assert losses[-1] <= 0.01 * losses[0], (name, i, losses[0], losses[-1])
 
 
 def test_pushforward_starts_the_loss_from_the_models_own_prediction():

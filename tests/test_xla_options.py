@@ -127,7 +127,9 @@ def test_train_step_equals_the_default_compilation(fresh_options):
 def test_erwin_gets_the_options_in_its_training_step_only(fresh_options):
     """Erwin's training step compiles without YNNPACK and equals XLA's defaults; its evaluation
     step (forward only, like its rollouts) keeps them."""
-    model = create_model("erwin", get_config("erwin", tiny=True, radius=0.5))
+    # one block per level (no scanned pair): the options, not the depth, are under test
+    model = create_model("erwin", get_config("erwin", tiny=True, radius=0.5, enc_depths=(1, 1),
+                                             dec_depths=(1,)))
     state, data, key, stats, fast, plain = _train_steps(model, make_optimizer(1e-3))
     assert _ynn_in(plain.lower(state, data, key).compile().as_text())
     assert not _ynn_in(fast.lower(state, data, key).compile().as_text())
