@@ -230,22 +230,6 @@ def train_tiny_cli(tmp_path, *flags: str, n_nodes: int = 60):
     return data, run
 
 
-def check_cli_length_option(tmp_path, flag: str, value: float, field: str, radius: str) -> None:
-    """Train with ``flag value`` (a length in vessel radii; :func:`train_tiny_cli`) and check
-    that it reaches the run's ``TrainConfig.<field>``, the run config's ``radius`` (scaled
-    units, > 0) and the reloaded step's ``radius`` attribute: the step rolls out as it
-    trained."""
-    import pytest
-
-    from thrombojax.train.state import load_trained
-
-    _, run = train_tiny_cli(tmp_path, flag, str(value), n_nodes=80)
-    loaded = load_trained(run)
-    assert getattr(loaded.run.train, field) == value
-    assert loaded.config[radius] > 0
-    assert getattr(loaded.step, radius) == pytest.approx(loaded.config[radius])
-
-
 def check_step_input_option(prev, cur, nt, mask, option: str, value: float, width: int,
                             expected, field: str, atol: float) -> np.ndarray:
     """A tiny MeshGraphNet step made with ``option=value`` reads ``width`` more inputs per node

@@ -86,15 +86,6 @@ def test_clearance_reaches_the_model_and_the_training_config():
                             atol=1e-6)
 
 
-def test_cli_trains_with_clearance_features_and_reloads_the_step(tmp_path):
-    """`--clearance-features` reaches the run's config (a length in scaled units) and the loaded
-    model steps with it, as it trained."""
-    from dataset_factory import check_cli_length_option
-
-    check_cli_length_option(tmp_path, "--clearance-features", 1.0, "clearance_features",
-                            "clearance_radius")
-
-
 def _speed_change_error(clearance_radius: float) -> float:
     """:func:`dataset_factory.width_speed_error` on this module's clots."""
     from dataset_factory import width_speed_error

@@ -85,14 +85,6 @@ def test_shape_features_reach_the_model_and_the_training_config():
                             atol=1e-5)
 
 
-def test_cli_trains_with_shape_features_and_reloads_the_step(tmp_path):
-    """`--shape-features` reaches the run's config (a length in scaled units) and the loaded
-    model steps with it, as it trained."""
-    from dataset_factory import check_cli_length_option
-
-    check_cli_length_option(tmp_path, "--shape-features", 1.0, "shape_features", "shape_radius")
-
-
 def _stretch_carry_after_training(shape_radius: float) -> float:
     """The tiny step (with the shape features when ``shape_radius > 0``) trained with stretch
     noise 0.3 on clots that are random clouds of nodes

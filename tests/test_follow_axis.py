@@ -82,19 +82,6 @@ def test_the_step_adds_the_prior_and_the_loss_learns_what_it_leaves():
         make_step(cv, prior_radius=-1.0)
 
 
-def test_cli_trains_with_the_prior_and_the_lateral_hold_and_reloads_them(tmp_path):
-    from dataset_factory import train_tiny_cli
-
-    from thrombojax.train.state import load_trained
-
-    _, run = train_tiny_cli(tmp_path, "--follow-axis", "2", "--lateral-hold", "1.5", n_nodes=80)
-    loaded = load_trained(run)
-    assert loaded.run.train.follow_axis == 2.0 and loaded.config["prior_radius"] > 0
-    assert loaded.step.prior_radius == pytest.approx(loaded.config["prior_radius"])
-    assert loaded.run.train.lateral_hold == 1.5  # tests/test_lateral_hold.py
-    assert loaded.step.lateral_radius == pytest.approx(0.75 * loaded.config["prior_radius"])
-
-
 def test_the_follow_axis_experiment_rules_and_script(tmp_path):
     """experiments/follow_axis.py: per node keeps each speed along the axis, rigid moves the
     clot as one body, 'axis part only' drops the speed across; the script writes its table

@@ -18,14 +18,21 @@ def _max_diff(a, b):
     return max(float(np.abs(x - y).max()) for x, y in zip(_leaves(a), _leaves(b), strict=True))
 
 
-def test_a_run_started_from_another_run_starts_from_its_weights(tmp_path):
+@pytest.fixture(scope="module")
+def source(tmp_path_factory):
+    """A tiny trained run to start from (:func:`dataset_factory.train_tiny_cli`): ``(dataset,
+    run)``; the tests below only read it."""
     from dataset_factory import train_tiny_cli
 
+    return train_tiny_cli(tmp_path_factory.mktemp("source"), n_nodes=60)
+
+
+def test_a_run_started_from_another_run_starts_from_its_weights(tmp_path, source):
     from thrombojax.cli import main
     from thrombojax.train.state import load_trained
 
-    data, run = train_tiny_cli(tmp_path, n_nodes=60)
-    source = load_trained(run, which="last")
+    data, run = source
+    start = load_trained(run, which="last")
     common = ["train", "--dataset", str(data), "--model", "mgn", "--tiny", "--epochs", "1",
               "--batch-size", "2", "--n-val", "1", "--n-test", "1", "--warmup-epochs", "0.5",
               "--lr", "1e-9", "--quiet"]
@@ -35,19 +42,17 @@ def test_a_run_started_from_another_run_starts_from_its_weights(tmp_path):
     assert main([*common, "--out", str(fresh), "--rollout-steps", "2"]) == 0
     after = load_trained(tuned, which="last")
     # a learning rate of 1e-9 leaves the weights where they started: the source run's
-    assert _max_diff(after.params, source.params) < 1e-6
+    assert _max_diff(after.params, start.params) < 1e-6
     assert after.run.train.init_from == str(run) and after.run.train.init_which == "last"
     assert after.run.train.rollout_steps == 2
     # the same training without --init-from starts from its own random weights
-    assert _max_diff(load_trained(fresh, which="last").params, source.params) > 1e-3
+    assert _max_diff(load_trained(fresh, which="last").params, start.params) > 1e-3
 
 
-def test_weights_that_do_not_fit_are_refused_naming_the_run(tmp_path, capsys):
-    from dataset_factory import train_tiny_cli
-
+def test_weights_that_do_not_fit_are_refused_naming_the_run(tmp_path, capsys, source):
     from thrombojax.cli import main
 
-    data, run = train_tiny_cli(tmp_path, n_nodes=60)
+    data, run = source
     common = ["train", "--dataset", str(data), "--tiny", "--epochs", "1", "--batch-size", "2",
               "--n-val", "1", "--n-test", "1", "--warmup-epochs", "0.5", "--quiet",
               "--init-from", str(run)]

@@ -96,11 +96,3 @@ def test_outlet_features_reach_the_model_and_the_training_config():
     assert extra[nt == NodeType.CLOT, 1].min() < -0.01
     with pytest.raises(ConfigError, match="--outlet-features"):
         check_dense_inputs(TrainConfig(outlet_features=2.0), DENSE_PLANE_NODES + 64)
-
-
-def test_cli_trains_with_outlet_features_and_reloads_the_step(tmp_path):
-    """`--outlet-features` reaches the run's config (a width in scaled units) and the loaded
-    model steps with it, as it trained."""
-    from dataset_factory import check_cli_length_option
-
-    check_cli_length_option(tmp_path, "--outlet-features", 2.0, "outlet_features", "outlet_radius")

@@ -117,15 +117,6 @@ def test_section_width_reaches_the_model_and_the_training_config():
                             "section_features", atol=1e-6)
 
 
-def test_cli_trains_with_section_features_and_reloads_the_step(tmp_path):
-    """`--section-features` reaches the run's config (a length in scaled units) and the loaded
-    model steps with it, as it trained."""
-    from dataset_factory import check_cli_length_option
-
-    check_cli_length_option(tmp_path, "--section-features", 1.0, "section_features",
-                            "section_radius")
-
-
 def test_section_width_lets_a_step_see_the_width_that_sets_the_speed():
     """Fails without the feature: the tube wall that sets each clot's acceleration is out of the
     graph's reach, so the tiny step learns the mean (error about 2/3 of the spread); given the

@@ -128,19 +128,17 @@ def test_axis_features_reach_the_model(tmp_path):
         make_step(model, axis_radius=-1.0)
 
 
-def test_cli_trains_with_axis_features_and_reloads_the_step(tmp_path, capsys):
-    """`--axis-features` reaches the run's config (as a width in scaled units) and the loaded
-    model steps with it, as it trained; a negative width is refused before training."""
-    from dataset_factory import train_tiny_cli
+def test_cli_refuses_a_negative_axis_width_before_training(tmp_path, capsys):
+    """A negative `--axis-features` is refused before training, naming the option (that the
+    option reaches the run and the reloaded step: tests/test_step_options_cli.py)."""
+    from dataset_factory import accelerating_sims
 
     from thrombojax.cli import main
-    from thrombojax.train.state import load_trained
+    from thrombojax.io.hdf5 import write_dataset
 
-    data, run = train_tiny_cli(tmp_path, "--axis-features", "2", n_nodes=80)
-    loaded = load_trained(run)
-    assert loaded.run.train.axis_features == 2.0
-    assert loaded.config["axis_radius"] > 0
-    assert loaded.step.axis_radius == pytest.approx(loaded.config["axis_radius"])
+    data = write_dataset(tmp_path / "acc.h5", accelerating_sims(n_sims=4, n_nodes=80,
+                                                                 n_frames=8),
+                         name="acc", source="test")
     with pytest.raises(SystemExit):
         main(["train", "--dataset", str(data), "--model", "mgn", "--out", str(tmp_path / "bad"),
               "--tiny", "--epochs", "1", "--axis-features", "-1", "--quiet"])
