@@ -213,16 +213,23 @@ def accelerating_sims(n_sims: int = 4, n_nodes: int = 160, n_frames: int = 12, *
     return sims
 
 
-def train_tiny_cli(tmp_path, *flags: str, n_nodes: int = 60):
-    """Write a small accelerating dataset (4 simulations of ``n_nodes`` nodes) and train the
-    tiny MeshGraphNet on it for one epoch with ``thrombojax train`` and ``flags``; returns
-    ``(dataset path, run folder)``."""
-    from thrombojax.cli import main
+def tiny_cli_dataset(tmp_path, n_nodes: int = 60):
+    """A small accelerating dataset at ``tmp_path/acc.h5`` (4 simulations of ``n_nodes`` nodes,
+    8 frames: :func:`accelerating_sims`); returns its path."""
     from thrombojax.io.hdf5 import write_dataset
 
-    data = write_dataset(tmp_path / "acc.h5", accelerating_sims(n_sims=4, n_nodes=n_nodes,
+    return write_dataset(tmp_path / "acc.h5", accelerating_sims(n_sims=4, n_nodes=n_nodes,
                                                                  n_frames=8),
                          name="acc", source="test")
+
+
+def train_tiny_cli(tmp_path, *flags: str, n_nodes: int = 60):
+    """Write a small accelerating dataset (:func:`tiny_cli_dataset`) and train the tiny
+    MeshGraphNet on it for one epoch with ``thrombojax train`` and ``flags``; returns
+    ``(dataset path, run folder)``."""
+    from thrombojax.cli import main
+
+    data = tiny_cli_dataset(tmp_path, n_nodes)
     run = tmp_path / "run"
     assert main(["train", "--dataset", str(data), "--model", "mgn", "--out", str(run),
                  "--tiny", "--epochs", "1", "--batch-size", "2", "--n-val", "1", "--n-test",

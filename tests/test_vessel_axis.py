@@ -131,14 +131,11 @@ def test_axis_features_reach_the_model(tmp_path):
 def test_cli_refuses_a_negative_axis_width_before_training(tmp_path, capsys):
     """A negative `--axis-features` is refused before training, naming the option (that the
     option reaches the run and the reloaded step: tests/test_step_options_cli.py)."""
-    from dataset_factory import accelerating_sims
+    from dataset_factory import tiny_cli_dataset
 
     from thrombojax.cli import main
-    from thrombojax.io.hdf5 import write_dataset
 
-    data = write_dataset(tmp_path / "acc.h5", accelerating_sims(n_sims=4, n_nodes=80,
-                                                                 n_frames=8),
-                         name="acc", source="test")
+    data = tiny_cli_dataset(tmp_path, n_nodes=80)
     with pytest.raises(SystemExit):
         main(["train", "--dataset", str(data), "--model", "mgn", "--out", str(tmp_path / "bad"),
               "--tiny", "--epochs", "1", "--axis-features", "-1", "--quiet"])

@@ -41,15 +41,12 @@ def test_the_share_is_checked():
 
 @pytest.mark.slow
 def test_the_model_is_the_mean_of_the_last_steps_and_resumes_exactly(tmp_path):
-    from dataset_factory import accelerating_sims
+    from dataset_factory import tiny_cli_dataset
 
-    from thrombojax.io.hdf5 import write_dataset
     from thrombojax.train.loop import train
     from thrombojax.train.state import load_trained, restore_checkpoint
 
-    data = write_dataset(tmp_path / "acc.h5", accelerating_sims(n_sims=4, n_nodes=60,
-                                                                n_frames=8),
-                         name="acc", source="test")
+    data = tiny_cli_dataset(tmp_path)
     kw = dict(tiny=True, epochs=2, batch_size=2, n_val=1, n_test=1, warmup_epochs=0.5,
               lr=3e-3, progress=False)
 
