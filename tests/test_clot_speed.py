@@ -81,3 +81,47 @@ def test_script_writes_its_outputs_and_refuses_to_replace_them(tmp_path):
     assert (out / "speed.png").stat().st_size > 0 and (out / "clot_speed.json").is_file()
     with pytest.raises(Exception, match="exists|force"):
         m.main(["--dataset", str(data), "--out", str(out)])
+
+
+def test_exit_crossing_and_the_exit_timing_rule_on_a_straight_tube():
+    """A clot moving along x at 0.5 per frame past a wall that ends at x = 10: it passes the
+    far end after (10 - x0) / 0.5 steps, at that distance; the exit-timing rule, given another
+    simulation whose clot takes as many steps to its exit, ends exactly where the true one does,
+    and a clot that never leaves the tube has no exit."""
+    m = _module()
+    wall = np.stack([np.linspace(-2.0, 10.0, 25), np.ones(25), np.zeros(25)], axis=-1)
+    track = np.stack([0.5 + 0.5 * np.arange(30), np.zeros(30), np.zeros(30)], axis=-1)
+    steps, distance = m.exit_crossing(track, wall)
+    assert steps == pytest.approx(19.0) and distance == pytest.approx(9.5)
+    assert m.exit_crossing(track[:10], wall) is None  # never past x = 10
+
+    def sim(speed, exit_steps, steps=29):
+        return {"steps": steps, "travel": speed * steps, "exit_steps": exit_steps,
+                "exit_distance": None if exit_steps is None else speed * exit_steps}
+
+    slow, fast = sim(0.3, 20.0), sim(0.6, 20.0)  # the same frame of exit, twice the speed
+    assert m.exit_rule(slow, [fast]) == pytest.approx(0.0, abs=1e-12)
+    assert m.exit_rule(fast, [slow]) == pytest.approx(0.0, abs=1e-12)
+    assert m.exit_rule(slow, [sim(0.6, 25.0)]) < 0  # the others exit later: the rule is slow
+    assert np.isnan(m.exit_rule(slow, [sim(0.6, None)]))
+
+
+def test_parameter_rule_recovers_a_speed_set_by_one_parameter():
+    """Speeds per frame ``exp(1 + 0.5 friction) * dt``: leaving each simulation out, the ridge
+    fit on the others' friction (the constant inputs dropped) predicts it within a few per cent
+    at the smallest weight, which is the one reported; without the attributes every error is
+    NaN."""
+    m = _module()
+    rng = np.random.default_rng(0)
+    sims = {}
+    for i, (friction, dt) in enumerate(zip(rng.uniform(0.1, 0.3, 8), rng.uniform(0.5, 0.9, 8),
+                                           strict=True)):
+        speed = np.exp(1.0 + 0.5 * friction) * dt
+        sims[f"s{i}"] = {"steps": 100, "travel": 100 * speed, "dt": float(dt),
+                         "parameters": {"friction": float(friction), "young": 1.0}}
+    rule = m.parameter_rule(sims)
+    assert rule["inputs"] == ["friction"] and rule["lambda"] == min(m.RIDGE)
+    for name, error in rule["errors"].items():
+        assert abs(error) < 0.02 * sims[name]["travel"], (name, error)
+    bare = {k: {"steps": v["steps"], "travel": v["travel"]} for k, v in sims.items()}
+    assert all(np.isnan(e) for e in m.parameter_rule(bare)["errors"].values())

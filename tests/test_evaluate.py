@@ -266,6 +266,27 @@ def test_rollout_centring_adds_the_centring_guard(tiny_run, capsys):
     assert not (root / "centred_alone").exists()
 
 
+def test_rollout_coherence_tolerance_reaches_the_guard(tiny_run, capsys):
+    """--coherence-tolerance R sets the coherence guard's tolerance and records it: at 0 every
+    deviation from the rigid start is pulled back, so the guard moves nodes further than at its
+    default of 1 r; without the guards it is refused, naming both options."""
+    data, run, root = tiny_run
+    common = ["rollout", "--run", str(run), "--dataset", str(data), "--sim", "sim_1",
+              "--no-gif", "--quiet"]
+    largest = {}
+    for label, extra in (("default", []), ("rigid", ["--coherence-tolerance", "0"])):
+        assert main([*common, "--out", str(root / f"coherence_{label}"), *extra]) == 0
+        rep = json.loads((root / f"coherence_{label}" / "rollout.json").read_text())
+        assert rep["guards"] and rep["coherence_r"] == (0.0 if extra else None)
+        largest[label] = max(rep["simulations"]["sim_1"]["curves"]["mgn"]["guard_coherence"])
+    assert largest["rigid"] > max(largest["default"], 0.0)
+    capsys.readouterr()
+    assert main([*common, "--out", str(root / "coherence_alone"), "--no-guards",
+                 "--coherence-tolerance", "0.5"]) == 2
+    assert "--coherence-tolerance with --no-guards" in capsys.readouterr().err
+    assert not (root / "coherence_alone").exists()
+
+
 def test_rollout_of_an_ensemble_reports_its_spread(tiny_run):
     """An ensemble folder rolls out as one program: mean prediction, spread beside the error."""
     from thrombojax.train.ensemble import train_ensemble

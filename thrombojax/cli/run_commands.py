@@ -348,6 +348,10 @@ def _add_rollout(sub) -> None:
                    "the whole clot moved rigidly to within R vessel radii of the middle of the "
                    "vessel's cross-section; 'auto': R that leaves 95%% of the run's training "
                    "clots alone (default: off)")
+    p.add_argument("--coherence-tolerance", type=NN_FLOAT, metavar="R", dest="coherence",
+                   help="the coherence guard's tolerance: the part of a clot node's deviation "
+                   "from a rigid copy of the start frame beyond R vessel radii is pulled back "
+                   "(default 1; the true clots deform up to about 0.9 r)")
     p.add_argument("--rotations", type=NN_INT, default=0, metavar="R",
                    help="a rotation ensemble: roll the model (every member of an ensemble) "
                    "out on R copies of each simulation, the first unturned, R - 1 turned by "
@@ -364,7 +368,8 @@ def _run_rollout(args) -> int:
                       which=args.checkpoint, skip=args.skip, n_steps=args.steps,
                       n_nodes=args.nodes, seed=args.seed, format=args.format,
                       gif=not args.no_gif, force=args.force, progress=not args.quiet,
-                      guards=not args.no_guards, rotations=args.rotations, centring_r=args.centring)
+                      guards=not args.no_guards, rotations=args.rotations, centring_r=args.centring,
+                      coherence_r=args.coherence)
     print(f"simulations: {res['selection']['how']}")
     print(res["table"], end="")
     print(f"wrote rollouts to {args.out}/")

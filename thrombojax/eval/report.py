@@ -179,6 +179,7 @@ def rollout_run(
     guards: bool = True,
     rotations: int = 0,
     centring_r: float | str | None = None,
+    coherence_r: float | None = None,
 ) -> dict:
     """Roll a trained run out on simulations of a dataset and write trajectories, plots, metrics.
 
@@ -216,6 +217,8 @@ def rollout_run(
             that leaves 95 % of the true clots' frames of the run's training simulations alone
             (:func:`thrombojax.eval.centring_fit.fit_centring` on the run's own dataset),
             recorded under ``centring_fit``.
+        coherence_r: with the guards, the coherence guard's tolerance in vessel radii
+            (``None``: its default, 1 r; recorded as ``coherence_r``).
     Returns:
         JSON-ready summary (also written to ``rollout.json``; tables in ``rollout.md``, the one
         in vessel radii under ``table``).
@@ -223,6 +226,9 @@ def rollout_run(
     if centring_r is not None and not guards:
         raise ConfigError("rollout: centring is a guard; it cannot run without the guards "
                           "(--centring with --no-guards)")
+    if coherence_r is not None and not guards:
+        raise ConfigError("rollout: the coherence tolerance is a guard's; it cannot run without "
+                          "the guards (--coherence-tolerance with --no-guards)")
     ensemble = (pathlib.Path(run_dir) / "ensemble.json").is_file()
     if ensemble:
         members = load_ensemble(run_dir, which=which)
@@ -265,7 +271,7 @@ def rollout_run(
                                  seed=seed, wall_cells=sim.wall_cells,
                                  ensemble=n_members > 1 or bool(rotations),
                                  guard_radius=1.0 / units.factor if guards else None,
-                                 centring_r=centring_r)
+                                 centring_r=centring_r, coherence_r=coherence_r)
         check_finite({"predicted positions": float(np.sum(res.pred))},
                      f"{run_dir}: checkpoint '{which}' on simulation '{name}'")
         exit_at = simulation_exit_frame(pos, node_type, sim.wall_cells)
@@ -286,6 +292,7 @@ def rollout_run(
               "selection": {"how": how, "simulations": names}, "skip": skip,
               "skip_frames": skip_frames, "seed": seed, "units": units.to_dict(),
               "guards": bool(guards), "centring_r": centring_r, "centring_fit": centring_fit,
+              "coherence_r": coherence_r,
               "checkpoint": which, "ensemble_members": n_members, "rotations": int(rotations),
               "phase_definitions": PHASE_HELP, "date": env["date"], "environment": env,
               "simulations": report}

@@ -91,6 +91,7 @@ def rollout_simulation(
     ensemble: bool = False,
     centring_r: float | None = None,
     pace: float | None = None,
+    coherence_r: float | None = None,
 ) -> RolloutResult:
     """Roll a model out on one simulation and measure it (scaled coordinates throughout).
 
@@ -117,6 +118,10 @@ def rollout_simulation(
         pace: with the guards, every clot node's learned step times this factor before they
             act (:meth:`thrombojax.simulator.guard_set.GuardSet.pace_step`; ``None``: off); it
             needs ``guard_radius``.
+        coherence_r: with the guards, the coherence guard's tolerance in vessel radii (the
+            part of a clot node's deviation from a rigid copy of the start frame beyond it is
+            pulled back; ``None``: :func:`~thrombojax.simulator.guard_set.build_guards`'s
+            default, 1 r); it needs ``guard_radius``.
     Returns:
         The :class:`RolloutResult`.
     """
@@ -131,6 +136,9 @@ def rollout_simulation(
         raise ConfigError(f"simulation '{name}': centring is a guard: it needs the guards on")
     if pace is not None and guard_radius is None:
         raise ConfigError(f"simulation '{name}': pace acts with the guards: it needs them on")
+    if coherence_r is not None and guard_radius is None:
+        raise ConfigError(f"simulation '{name}': the coherence tolerance is a guard's: it needs "
+                          "the guards on")
     if not 1 <= n_steps <= max_steps:
         raise ConfigError(f"simulation '{name}': n_steps {n_steps} must be in 1..{max_steps} from "
                           f"frame {t0}")
@@ -142,7 +150,8 @@ def rollout_simulation(
     mask = np.ones(idx.size, bool)
     guards = None if guard_radius is None else build_guards(
         positions[0], node_type, x0, sub_type, radius=guard_radius, wall_cells=wall_cells,
-        centring_r=centring_r, pace=pace)
+        centring_r=centring_r, pace=pace,
+        **({} if coherence_r is None else {"tolerance_r": float(coherence_r)}))
     spread = None
     if ensemble:
         ens = ensemble_rollout(model, params, stats, x_prev, x0, sub_type, mask, n_steps,
