@@ -173,15 +173,14 @@ def parameter_rule(sims: dict[str, dict]) -> dict:
     inputs = [k for k in PARAMETERS
               if all(k in s.get("parameters", {}) for s in sims.values())
               and np.ptp([s["parameters"][k] for s in sims.values()]) > 0]
-    nan = {"lambda": None, "inputs": inputs, "errors": {n: float("nan") for n in names},
-           "largest_by_lambda": {}}
     if not inputs or len(names) < 3 or any(not s.get("dt") for s in sims.values()):
-        return nan
+        return {"lambda": None, "inputs": inputs, "errors": {n: float("nan") for n in names},
+                "largest_by_lambda": {}}
     x = np.array([[sims[n]["parameters"][k] for k in inputs] for n in names])
     dt = np.array([sims[n]["dt"] for n in names])
     mean = np.array([sims[n]["travel"] / sims[n]["steps"] for n in names])
     y = np.log(mean / dt)  # log speed in the solver's time units
-    best = nan
+    by_lambda = {}
     for lam in RIDGE:
         errors = {}
         for i, name in enumerate(names):
@@ -192,11 +191,11 @@ def parameter_rule(sims: dict[str, dict]) -> dict:
             w = np.linalg.solve(z.T @ z + lam * np.eye(len(inputs)), z.T @ (y[keep] - y0))
             speed = np.exp(y0 + ((x[i] - mu) / sd) @ w) * dt[i]
             errors[name] = float((speed - mean[i]) * sims[name]["steps"])
-        largest = max(abs(e) for e in errors.values())
-        nan["largest_by_lambda"][lam] = largest
-        if best["lambda"] is None or largest < max(abs(e) for e in best["errors"].values()):
-            best = {"lambda": lam, "inputs": inputs, "errors": errors}
-    return best | {"largest_by_lambda": nan["largest_by_lambda"]}
+        by_lambda[lam] = errors
+    largest = {lam: max(abs(e) for e in errors.values()) for lam, errors in by_lambda.items()}
+    best = min(largest, key=largest.get)
+    return {"lambda": best, "inputs": inputs, "errors": by_lambda[best],
+            "largest_by_lambda": largest}
 
 
 def _corr(x: np.ndarray, y: np.ndarray) -> float:
