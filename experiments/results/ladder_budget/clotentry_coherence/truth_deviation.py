@@ -31,12 +31,19 @@ from thrombojax.types import NodeType
 EVERY = 4
 
 
+@jax.jit
+def _deviation(x: jax.Array, ref: jax.Array) -> jax.Array:
+    """Each clot node's distance from its place in the best rigid copy of ``ref`` (one program
+    for every frame and simulation of the same clot size)."""
+    mask = jnp.ones(x.shape[0], bool)
+    return coherence(x, ref, mask, stiffness=1.0, tolerance=0.0)[1]
+
+
 def deviations(positions: np.ndarray, start: int, r: float) -> np.ndarray:
     """``[frames, clot nodes]`` distances (radii) of the clot ``positions [T, C, 3]`` from the
     best rigid copy of frame ``start``, every ``EVERY``-th frame from ``start``."""
-    ref, mask = jnp.asarray(positions[start]), jnp.ones(positions.shape[1], bool)
-    dev = jax.jit(lambda x: coherence(x, ref, mask, stiffness=1.0, tolerance=0.0)[1])
-    return np.stack([np.asarray(dev(jnp.asarray(positions[t])))
+    ref = jnp.asarray(positions[start])
+    return np.stack([np.asarray(_deviation(jnp.asarray(positions[t]), ref))
                      for t in range(start, positions.shape[0], EVERY)]) / r
 
 
