@@ -244,6 +244,8 @@ def test_rollout_guards_on_by_default_and_off_for_the_model_alone(tiny_run):
     assert {"guard_containment", "guard_coherence"} <= set(curves_on)
     assert not any(k.startswith("guard_") for k in curves_off)
     assert all(v >= 0 for v in curves_on["guard_containment"])
+    assert "Guards: off (the model alone)." in (root / "alone" / "rollout.md").read_text()
+    assert "Guards: on: containment; coherence" in (root / "guarded" / "rollout.md").read_text()
 
 
 def test_rollout_centring_adds_the_centring_guard(tiny_run, capsys):
@@ -268,18 +270,38 @@ def test_rollout_centring_adds_the_centring_guard(tiny_run, capsys):
 
 def test_rollout_coherence_tolerance_reaches_the_guard(tiny_run, capsys):
     """--coherence-tolerance R sets the coherence guard's tolerance and records it: at 0 every
-    deviation from the rigid start is pulled back, so the guard moves nodes further than at its
-    default of 1 r; without the guards it is refused, naming both options."""
+    deviation from the rigid start is pulled back, so the guard moves nodes further than at
+    1 r; the default is 'auto', the tolerance fitted on the run's training simulations
+    (recorded with the fit); without the guards it is refused, naming both options."""
+    from thrombojax import study
+    from thrombojax.data.radius import vessel_radius
+    from thrombojax.eval.coherence_fit import fit_coherence
+    from thrombojax.io.hdf5 import open_dataset
+    from thrombojax.train.state import load_trained
+
     data, run, root = tiny_run
     common = ["rollout", "--run", str(run), "--dataset", str(data), "--sim", "sim_1",
               "--no-gif", "--quiet"]
     largest = {}
-    for label, extra in (("default", []), ("rigid", ["--coherence-tolerance", "0"])):
+    reps, largest = {}, {}
+    for label, extra in (("fixed", ["--coherence-tolerance", "1"]),
+                         ("rigid", ["--coherence-tolerance", "0"]), ("default", [])):
         assert main([*common, "--out", str(root / f"coherence_{label}"), *extra]) == 0
-        rep = json.loads((root / f"coherence_{label}" / "rollout.json").read_text())
-        assert rep["guards"] and rep["coherence_r"] == (0.0 if extra else None)
+        reps[label] = rep = json.loads((root / f"coherence_{label}" / "rollout.json").read_text())
+        assert rep["guards"]
         largest[label] = max(rep["simulations"]["sim_1"]["curves"]["mgn"]["guard_coherence"])
-    assert largest["rigid"] > max(largest["default"], 0.0)
+    assert reps["fixed"]["coherence_r"] == 1.0 and reps["rigid"]["coherence_r"] == 0.0
+    assert reps["fixed"]["coherence_fit"] is None is reps["rigid"]["coherence_fit"]
+    assert largest["rigid"] > max(largest["fixed"], 0.0)
+    ds = open_dataset(data)
+    trained = load_trained(run)
+    want = fit_coherence(ds, trained.split.train, float(vessel_radius(ds)), study.skip_frames(ds))
+    assert reps["default"]["coherence_fit"] == want
+    assert reps["default"]["coherence_r"] == want["coherence_r"] > 0
+    said = (root / "coherence_default" / "rollout.md").read_text()
+    assert f"coherence with a tolerance of {want['coherence_r']:.3g} r (fitted on the run's" in said
+    assert "tolerance of 0 r (fixed)" in (root / "coherence_rigid" / "rollout.md").read_text()
+    assert want["simulations"] == list(trained.split.train)
     capsys.readouterr()
     assert main([*common, "--out", str(root / "coherence_alone"), "--no-guards",
                  "--coherence-tolerance", "0.5"]) == 2
@@ -372,3 +394,15 @@ def test_rollout_centring_auto_fits_the_tolerance_on_the_training_simulations(ti
     err = capsys.readouterr().err
     assert "gone.h5" in err and "give --centring a number" in err
     assert not (root / "auto_gone").exists()
+    assert main([*common, "--run", str(moved), "--out", str(root / "auto_gone"),
+                 "--coherence-tolerance", "auto"]) == 2
+    err = capsys.readouterr().err
+    assert "gone.h5" in err and "give --coherence-tolerance a number" in err
+    assert not (root / "auto_gone").exists()
+    # by default the coherence tolerance is 'auto' where it can be, else the fixed 1 r, said
+    assert main([*common, "--run", str(moved), "--out", str(root / "fixed_gone")]) == 0
+    err = capsys.readouterr().err
+    assert "warning: the coherence tolerance was not fitted" in err and "gone.h5" in err
+    assert "keeps the fixed tolerance of 1 r" in err
+    rep = json.loads((root / "fixed_gone" / "rollout.json").read_text())
+    assert rep["coherence_r"] == 1.0 and rep["coherence_fit"] is None

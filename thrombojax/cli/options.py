@@ -16,7 +16,7 @@ __all__ = [
     "float_at_least",
     "float_above",
     "angle",
-    "centring",
+    "auto_radii",
     "NN_INT",
     "POS_INT",
     "NN_FLOAT",
@@ -88,8 +88,9 @@ NN_INT, POS_INT = int_at_least(0), int_at_least(1)
 NN_FLOAT, POS_FLOAT = float_at_least(0.0), float_above(0.0)
 
 
-def centring(text: str) -> float | str:
-    """``auto`` or a tolerance in vessel radii ``>= 0`` (``thrombojax rollout --centring``)."""
+def auto_radii(text: str) -> float | str:
+    """``auto`` or a tolerance in vessel radii ``>= 0`` (``thrombojax rollout --centring`` and
+    ``--coherence-tolerance``)."""
     return "auto" if text == "auto" else NN_FLOAT(text)
 
 

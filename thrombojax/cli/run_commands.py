@@ -8,7 +8,7 @@ from thrombojax.cli.options import (
     POS_FLOAT,
     POS_INT,
     angle,
-    centring,
+    auto_radii,
     output_flags,
 )
 
@@ -344,14 +344,17 @@ def _add_rollout(sub) -> None:
     p.add_argument("--no-guards", action="store_true", help="roll the model out alone: no "
                    "containment in the vessel, no clot coherence (default: guards on, their "
                    "corrections reported)")
-    p.add_argument("--centring", type=centring, metavar="R", help="also the centring guard: "
+    p.add_argument("--centring", type=auto_radii, metavar="R", help="also the centring guard: "
                    "the whole clot moved rigidly to within R vessel radii of the middle of the "
                    "vessel's cross-section; 'auto': R that leaves 95%% of the run's training "
                    "clots alone (default: off)")
-    p.add_argument("--coherence-tolerance", type=NN_FLOAT, metavar="R", dest="coherence",
+    p.add_argument("--coherence-tolerance", type=auto_radii, metavar="R", dest="coherence",
                    help="the coherence guard's tolerance: the part of a clot node's deviation "
-                   "from a rigid copy of the start frame beyond R vessel radii is pulled back "
-                   "(default 1; the true clots deform up to about 0.9 r)")
+                   "from a rigid copy of the start frame beyond R vessel radii is pulled back; "
+                   "'auto': R that leaves 95%% of the run's training clots' nodes and frames "
+                   "alone (0.21 r on BendVessel, 0.38 r on ClotEntry; their true clots stray "
+                   "up to 0.5 and 1.3 r). Default: auto when the run's dataset is there, "
+                   "else 1, with a warning")
     p.add_argument("--rotations", type=NN_INT, default=0, metavar="R",
                    help="a rotation ensemble: roll the model (every member of an ensemble) "
                    "out on R copies of each simulation, the first unturned, R - 1 turned by "

@@ -19,6 +19,7 @@ simulation was 0.15 r) and 0.08 r on BendVessel.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Any
 
 import jax
@@ -30,10 +31,19 @@ from thrombojax.simulator.centring import centre_lengths, section_centre
 from thrombojax.simulator.wall_build import wall_from_simulation
 from thrombojax.types import NodeType
 
-__all__ = ["AUTO_QUANTILE", "centroid_offsets", "fit_centring"]
+__all__ = ["AUTO_QUANTILE", "centroid_offsets", "check_fit_request", "fit_centring"]
 
 AUTO_QUANTILE: float = 0.95
 """The share of the true clots' frames that ``--centring auto`` leaves alone."""
+
+
+def check_fit_request(guard: str, dataset: Any, names: Sequence[str], quantile: float) -> None:
+    """Refuse a guard-tolerance fit (``fit_<guard>``) with a quantile outside (0, 1] or no
+    simulations (naming the dataset)."""
+    if not 0.0 < quantile <= 1.0:
+        raise DatasetError(f"fit_{guard}: quantile must be in (0, 1], got {quantile}")
+    if not names:
+        raise DatasetError(f"{dataset.path}: no simulations to fit the {guard} tolerance on")
 
 
 def centroid_offsets(positions: np.ndarray, node_type: np.ndarray,
@@ -72,10 +82,7 @@ def fit_centring(dataset: Any, names: list[str] | tuple[str, ...], radius: float
     Raises:
         DatasetError: no simulations, or no frame of them with a middle (naming the dataset).
     """
-    if not 0.0 < quantile <= 1.0:
-        raise DatasetError(f"fit_centring: quantile must be in (0, 1], got {quantile}")
-    if not names:
-        raise DatasetError(f"{dataset.path}: no simulations to fit the centring tolerance on")
+    check_fit_request("centring", dataset, names, quantile)
     pooled = []
     for name in names:
         sim = dataset[name]

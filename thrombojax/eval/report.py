@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import json
 import pathlib
+import warnings
 
 import numpy as np
 from tqdm.auto import tqdm
@@ -36,8 +37,9 @@ from tqdm.auto import tqdm
 from thrombojax import study
 from thrombojax.data.radius import vessel_radius
 from thrombojax.data.scaling import Scaling
-from thrombojax.errors import ConfigError
+from thrombojax.errors import ConfigError, DatasetError
 from thrombojax.eval.centring_fit import fit_centring
+from thrombojax.eval.coherence_fit import fit_coherence
 from thrombojax.eval.phases import PHASE_HELP
 from thrombojax.eval.physical import curves_in_radii, radius_units, summary_in_radii
 from thrombojax.eval.plots import animate_rollout, plot_error_curves, plot_rollout_metrics
@@ -54,6 +56,7 @@ from thrombojax.eval.truth_tables import rollout_markdown
 from thrombojax.io.export import export_trajectory
 from thrombojax.io.hdf5 import Simulation, open_dataset, write_dataset
 from thrombojax.io.outputs import atomic_path, atomic_write_text, check_targets, safe_stems
+from thrombojax.simulator.guard_set import FIXED_COHERENCE_R
 from thrombojax.simulator.rotations import RotatedStep, rotated_params, rotation_members
 from thrombojax.train.ensemble import load_ensemble
 from thrombojax.train.guards import check_finite, check_in_box
@@ -179,7 +182,7 @@ def rollout_run(
     guards: bool = True,
     rotations: int = 0,
     centring_r: float | str | None = None,
-    coherence_r: float | None = None,
+    coherence_r: float | str | None = None,
 ) -> dict:
     """Roll a trained run out on simulations of a dataset and write trajectories, plots, metrics.
 
@@ -218,7 +221,12 @@ def rollout_run(
             (:func:`thrombojax.eval.centring_fit.fit_centring` on the run's own dataset),
             recorded under ``centring_fit``.
         coherence_r: with the guards, the coherence guard's tolerance in vessel radii
-            (``None``: its default, 1 r; recorded as ``coherence_r``).
+            (recorded as ``coherence_r``). ``"auto"``: the tolerance that leaves 95 % of the
+            true clots' (node, frame) pairs of the run's training simulations alone
+            (:func:`thrombojax.eval.coherence_fit.fit_coherence` on the run's own dataset),
+            recorded under ``coherence_fit``; an error when that dataset is not there.
+            ``None`` (the default): ``"auto"`` when the run's dataset is there, else the fixed
+            ``FIXED_COHERENCE_R`` (1 r) with a warning.
     Returns:
         JSON-ready summary (also written to ``rollout.json``; tables in ``rollout.md``, the one
         in vessel radii under ``table``).
@@ -258,6 +266,11 @@ def rollout_run(
     if centring_r == "auto":
         centring_fit = _auto_centring(trained, ds, dataset_path, run_dir)
         centring_r = centring_fit["centring_r"]
+    coherence_fit = None
+    if guards and coherence_r in (None, "auto"):
+        coherence_fit = _auto_coherence(trained, ds, dataset_path, run_dir,
+                                        required=coherence_r == "auto")
+        coherence_r = coherence_fit["coherence_r"] if coherence_fit else FIXED_COHERENCE_R
     units = radius_units(trained.scaling, ds)
     out_dir.mkdir(parents=True, exist_ok=True)
     report = {}
@@ -292,7 +305,7 @@ def rollout_run(
               "selection": {"how": how, "simulations": names}, "skip": skip,
               "skip_frames": skip_frames, "seed": seed, "units": units.to_dict(),
               "guards": bool(guards), "centring_r": centring_r, "centring_fit": centring_fit,
-              "coherence_r": coherence_r,
+              "coherence_r": coherence_r, "coherence_fit": coherence_fit,
               "checkpoint": which, "ensemble_members": n_members, "rotations": int(rotations),
               "phase_definitions": PHASE_HELP, "date": env["date"], "environment": env,
               "simulations": report}
@@ -303,15 +316,36 @@ def rollout_run(
     return result
 
 
-def _auto_centring(trained, ds, dataset_path, run_dir) -> dict:
-    """``--centring auto``: fit the tolerance on the run's training simulations, read from the
-    run's own dataset (``ds`` when that is the dataset being rolled out)."""
+def _training_dataset(trained, ds, dataset_path, run_dir, option: str):
+    """The run's own dataset (``ds`` when that is the dataset being rolled out), whose training
+    simulations an ``auto`` option (``option``, e.g. ``--centring``) is fitted on."""
     own = pathlib.Path(trained.run.dataset)
     if own.is_file() and own.resolve() == pathlib.Path(dataset_path).resolve():
-        train_ds = ds
-    elif own.is_file():
-        train_ds = open_dataset(own)
-    else:
-        raise ConfigError(f"{run_dir}: --centring auto measures the run's training simulations "
-                          f"in its dataset {own}, which is not there; give --centring a number")
+        return ds
+    if own.is_file():
+        return open_dataset(own)
+    raise ConfigError(f"{run_dir}: {option} auto measures the run's training simulations "
+                      f"in its dataset {own}, which is not there; give {option} a number")
+
+
+def _auto_centring(trained, ds, dataset_path, run_dir) -> dict:
+    """``--centring auto``: fit the tolerance on the run's training simulations."""
+    train_ds = _training_dataset(trained, ds, dataset_path, run_dir, "--centring")
     return fit_centring(train_ds, trained.split.train, float(vessel_radius(train_ds)))
+
+
+def _auto_coherence(trained, ds, dataset_path, run_dir, *, required: bool) -> dict | None:
+    """``--coherence-tolerance auto`` (``required``) or the default: fit the tolerance on the
+    run's training simulations, from their dataset's rollout start (``skip_frames``). As the
+    default, a run whose dataset is not there (or cannot be fitted) keeps the fixed tolerance
+    (None returned) with a warning that says why."""
+    try:
+        train_ds = _training_dataset(trained, ds, dataset_path, run_dir, "--coherence-tolerance")
+        return fit_coherence(train_ds, trained.split.train, float(vessel_radius(train_ds)),
+                             study.skip_frames(train_ds))
+    except (ConfigError, DatasetError) as err:
+        if required:
+            raise
+        warnings.warn(f"the coherence tolerance was not fitted ({err}); the coherence guard "
+                      f"keeps the fixed tolerance of {FIXED_COHERENCE_R:g} r", stacklevel=3)
+        return None

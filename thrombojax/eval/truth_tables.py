@@ -129,6 +129,20 @@ def _predictor_rows(sims: Mapping[str, Mapping], model: str, in_r: bool) -> list
     return [_cells(r) for r in rows]
 
 
+def _guard_lines(result: Mapping) -> str:
+    """One line saying whether the guards acted and at which tolerances."""
+    if not result.get("guards"):
+        return "Guards: off (the model alone).\n\n"
+    fit = result.get("coherence_fit")
+    how = (f"fitted on the run's {len(fit['simulations'])} training simulation(s), the "
+           f"{fit['quantile']:.0%} quantile of their clots' distances from a rigid copy of "
+           f"frame {fit['start']}" if fit else "fixed")
+    centring, tolerance = result.get("centring_r"), result.get("coherence_r")
+    return (f"Guards: on: containment; coherence with a tolerance of "
+            f"{1.0 if tolerance is None else tolerance:.3g} r ({how})"
+            + (f"; centring within {centring:.3g} r" if centring is not None else "") + ".\n\n")
+
+
 def rollout_markdown(result: Mapping) -> tuple[str, str]:
     """``rollout.md`` of a rollout result, and its main table (vessel radii).
 
@@ -159,7 +173,7 @@ def rollout_markdown(result: Mapping) -> tuple[str, str]:
         "over the first h rollout steps (n/a: the rollout is shorter); 1-step MSE: teacher-"
         "forced single steps on the same nodes; max % outside: largest share of clot nodes "
         "through the vessel wall in any frame (the truth's row shows the test's floor).\n\n"
-        + _units_lines(result) + _phase_lines(result)
+        + _units_lines(result) + _guard_lines(result) + _phase_lines(result)
         + "## In vessel radii\n\n" + table_r
         + "\n## In scaled [-1, 1] coordinates (the study's unit)\n\n" + table_s
         + f"\nDataset length unit: {result['units']['dataset_units'] or 'not recorded'} "

@@ -17,8 +17,11 @@ Distances are in the rollout's (scaled) coordinates; :func:`build_guards` takes 
 radii and converts with ``radius`` (one vessel radius in scaled coordinates). Defaults:
 containment on with a 0.01 r margin and 0.01 r tolerance (about the solver's contact
 penetration), coherence on with a 1 r tolerance (the true clot deviates from a rigid copy of its
-start by up to ~0.9 r in the built-in datasets, so coherence acts only on a clot that falls
-apart) and full stiffness. Centring (:func:`~thrombojax.simulator.centring.centre_clot`) is off
+start by at most 0.50 r on BendVessel and 0.61-1.30 r on ClotEntry,
+``experiments/results/ladder_budget/coherence_auto/fit_table.md``, so at 1 r coherence acts
+mainly on a clot that falls apart; ``thrombojax rollout --coherence-tolerance auto`` fits a
+tighter one on the run's training simulations, :mod:`thrombojax.eval.coherence_fit`) and full
+stiffness. Centring (:func:`~thrombojax.simulator.centring.centre_clot`) is off
 unless a tolerance is given (``centring_r``).
 
 Pace (off unless ``pace`` is given) is a calibration rather than a guard: every clot node's
@@ -45,9 +48,13 @@ from thrombojax.simulator.wall import Wall
 from thrombojax.simulator.wall_build import wall_from_simulation
 from thrombojax.types import NodeType
 
-__all__ = ["GuardSet", "build_guards", "GUARD_NAMES"]
+__all__ = ["GuardSet", "build_guards", "GUARD_NAMES", "FIXED_COHERENCE_R"]
 
 GUARD_NAMES: tuple[str, ...] = ("centring", "coherence", "containment")
+
+FIXED_COHERENCE_R: float = 1.0
+""":func:`build_guards`'s coherence tolerance in vessel radii when none is given (``thrombojax
+rollout`` fits one on the run's training simulations instead, when it can)."""
 
 
 @struct.dataclass
@@ -144,7 +151,7 @@ def build_guards(
     margin_r: float = 0.01,
     tol_r: float = 0.01,
     stiffness: float = 1.0,
-    tolerance_r: float = 1.0,
+    tolerance_r: float = FIXED_COHERENCE_R,
     centring_r: float | None = None,
     pace: float | None = None,
 ) -> GuardSet:

@@ -6,45 +6,35 @@ guard's tolerance would cut from the truth itself. No model. Run from the reposi
 
 For every simulation and every 4th frame of the rollout window (from the dataset's
 ``skip_frames``), each true clot node's distance from its place in the best rigid copy of the
-clot at ``skip_frames`` (``thrombojax.simulator.guards.coherence`` with tolerance 0: its
-correction), in vessel radii, on all clot nodes. Per simulation: the largest distance and the
-frame it occurs at, its 99th percentile over the nodes at the worst frame, and for each
-tolerance the share of (node, frame) pairs beyond it: the nodes a guard at that tolerance
-would move on the true clot.
+clot at ``skip_frames`` (``thrombojax.eval.coherence_fit.clot_deviations``: the coherence
+guard's correction at tolerance 0), in vessel radii, on all clot nodes. Per simulation: the
+largest distance and the frame it occurs at, its 99th percentile over the nodes at the worst
+frame, and for each tolerance the share of (node, frame) pairs beyond it: the nodes a guard at
+that tolerance would move on the true clot.
 """
 
 import argparse
 import pathlib
 
-import jax
-import jax.numpy as jnp
 import numpy as np
 
 from thrombojax import study
 from thrombojax.data.radius import vessel_radius
+from thrombojax.eval.coherence_fit import clot_deviations
 from thrombojax.eval.tables import environment, markdown_table
 from thrombojax.io.hdf5 import open_dataset
 from thrombojax.io.outputs import atomic_write_text, check_targets
-from thrombojax.simulator.guards import coherence
 from thrombojax.types import NodeType
 
 EVERY = 4
 
 
-@jax.jit
-def _deviation(x: jax.Array, ref: jax.Array) -> jax.Array:
-    """Each clot node's distance from its place in the best rigid copy of ``ref`` (one program
-    for every frame and simulation of the same clot size)."""
-    mask = jnp.ones(x.shape[0], bool)
-    return coherence(x, ref, mask, stiffness=1.0, tolerance=0.0)[1]
-
-
 def deviations(positions: np.ndarray, start: int, r: float) -> np.ndarray:
     """``[frames, clot nodes]`` distances (radii) of the clot ``positions [T, C, 3]`` from the
-    best rigid copy of frame ``start``, every ``EVERY``-th frame from ``start``."""
-    ref = jnp.asarray(positions[start])
-    return np.stack([np.asarray(_deviation(jnp.asarray(positions[t]), ref))
-                     for t in range(start, positions.shape[0], EVERY)]) / r
+    best rigid copy of frame ``start``, every ``EVERY``-th frame from ``start`` (the first row,
+    frame ``start`` itself, zero)."""
+    every = clot_deviations(positions, np.full(positions.shape[1], NodeType.CLOT), start, r)
+    return np.concatenate([np.zeros_like(every[:1]), every[EVERY - 1::EVERY]])
 
 
 def main() -> None:
