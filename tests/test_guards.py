@@ -313,3 +313,48 @@ def test_guards_in_the_compiled_rollout():
     # off: the same compiled path without guards equals the free rollout
     plain, none = rollout_with_corrections(Outward(), {}, stats, x0, x0, node_type, mask, 12)
     assert none == {} and np.array_equal(np.asarray(plain), free)
+
+
+def test_a_new_tolerance_margin_or_stiffness_runs_the_same_compiled_rollout():
+    """The guards' distances and factors are traced: rolling out again at another coherence
+    tolerance, stiffness or containment margin compiles nothing new, and each value still
+    reaches the program (a tighter tolerance corrects more)."""
+    import dataclasses
+
+    from wall_factory import Outward, straight_tube
+
+    from thrombojax.eval.coherence_fit import clot_deviations
+    from thrombojax.simulator.guard_set import build_guards
+    from thrombojax.simulator.rollout import rollout_jit, rollout_with_corrections
+    from thrombojax.types import TargetStats
+
+    x0, node_type = straight_tube()
+    mask = np.ones(len(x0), bool)
+    stats = TargetStats(mean=jnp.zeros(3), std=jnp.ones(3))
+
+    def run(**kw):
+        """The largest correction of each guard, and the clot's largest distance from a rigid
+        copy of its start (after a coherence guard of stiffness 1: about its tolerance; the
+        correction moves the best rigid copy a little)."""
+        guards = build_guards(x0, node_type, x0, node_type, radius=1.0, **kw)
+        traj, corr = rollout_with_corrections(Outward(), {}, stats, x0, x0, node_type, mask, 8,
+                                              guards=guards)
+        frames = np.concatenate([x0[None], np.asarray(traj)])
+        spread = float(clot_deviations(frames, node_type, 0, 1.0).max())
+        return {"spread": spread} | {k: float(np.asarray(v).max()) for k, v in corr.items()}
+
+    loose = run(tolerance_r=0.5, containment=False)
+    size = rollout_jit._cache_size()
+    tight = run(tolerance_r=0.05, containment=False)
+    soft = run(tolerance_r=0.05, containment=False, stiffness=0.5)
+    assert rollout_jit._cache_size() == size
+    assert tight["spread"] < 0.08 < 0.3 < loose["spread"] < 0.6
+    assert soft["spread"] > tight["spread"]
+    contained = run(tolerance_r=0.05)
+    size = rollout_jit._cache_size()
+    margin = run(tolerance_r=0.05, margin_r=0.2)
+    assert rollout_jit._cache_size() == size
+    assert soft["coherence"] != tight["coherence"]
+    assert margin["containment"] != contained["containment"]
+    guards = build_guards(x0, node_type, x0, node_type, radius=1.0)
+    assert dataclasses.replace(guards, tolerance=0.3).tolerance == 0.3

@@ -59,7 +59,9 @@ rollout`` fits one on the run's training simulations instead, when it can)."""
 
 @struct.dataclass
 class GuardSet:
-    """The guards of one rollout (a pytree: arrays traced, switches and distances static).
+    """The guards of one rollout (a pytree: arrays and the guards' distances and factors
+    traced, so a rollout at another tolerance, margin, stiffness or pace runs the same compiled
+    program; the switches and the centring guard's search lengths static).
 
     Attributes:
         clot_index: ``[C]`` int32 indices of the clot rows the guards act on.
@@ -80,13 +82,13 @@ class GuardSet:
     wall: Wall
     x_ref: jax.Array
     containment: bool = struct.field(pytree_node=False, default=True)
-    margin: float = struct.field(pytree_node=False, default=0.0)
-    tol: float = struct.field(pytree_node=False, default=0.0)
+    margin: jax.Array | float = 0.0
+    tol: jax.Array | float = 0.0
     coherence: bool = struct.field(pytree_node=False, default=True)
-    stiffness: float = struct.field(pytree_node=False, default=1.0)
-    tolerance: float = struct.field(pytree_node=False, default=0.0)
+    stiffness: jax.Array | float = 1.0
+    tolerance: jax.Array | float = 0.0
     centring: bool = struct.field(pytree_node=False, default=False)
-    centre_tolerance: float = struct.field(pytree_node=False, default=0.0)
+    centre_tolerance: jax.Array | float = 0.0
     centre_lengths: tuple[float, float, float] = struct.field(pytree_node=False,
                                                               default=(1.0, 1.0, 1.0))
     pace: jax.Array | float = 1.0
