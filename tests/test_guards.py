@@ -318,7 +318,7 @@ def test_guards_in_the_compiled_rollout():
 def test_a_new_tolerance_margin_or_stiffness_runs_the_same_compiled_rollout():
     """The guards' distances and factors are traced: rolling out again at another coherence
     tolerance, stiffness or containment margin compiles nothing new, and each value still
-    reaches the program (a tighter tolerance corrects more)."""
+    reaches the program (a tighter tolerance keeps the clot nearer its rigid start)."""
     import dataclasses
 
     from wall_factory import Outward, straight_tube

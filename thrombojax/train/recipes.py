@@ -23,8 +23,11 @@
     (``experiments/results/ladder_budget/bendvessel_room/``).
 
   Its one step is worse than CV (6.0x in BendVessel's rollout phase; ``axis`` 0.35x): the
-  step keeps a fifth of the speed it is shown and takes the rest from the vessel, so it lags
-  where a simulation's own speed differs from what the vessel tells. Its features need a
+  step keeps a fifth of the speed it is shown and takes the rest from the vessel. On
+  BendVessel it follows the slide (within 0.36 r along the track when the exit begins) and
+  loses 1.6-1.9 r as the true clot speeds up out of the vessel; with speed noise 0.1 the step
+  keeps its speed (1.2x CV) but the clot speeds up over the slide and runs ahead
+  (``experiments/results/ladder_budget/bendvessel_speed_noise/``). Its features need a
   dense search: at most 8,192 nodes per sample (``--nodes-per-sample``).
 * ``"axis"`` (the default before ``room``): ``history`` plus the
   clot's velocity split along and across the local vessel axis (``axis_features=2.0``: the
