@@ -53,7 +53,7 @@ class DemoConfig:
         batch_size: training batch size. bench_steps: rollout steps timed per model (the
             rest of the 35 is extrapolated per step). tiny_models: bench the tiny configs.
         recipe: the training recipe (``thrombojax/train/recipes.py``; the default of
-            ``thrombojax train``: ``room``: the best rollouts on ClotEntry, near the best here).
+            ``thrombojax train``: ``outlet``, the room recipe with the outlet features).
         max_rotation: largest random rotation (radians) of training samples. 0 here: the
             BendVessel simulations are already rotated 0-190 degrees about one axis, and with
             the study's random 3-D rotations up to pi a small MeshGraphNet does not get below

@@ -20,7 +20,8 @@ __all__ = ["COMMON", "STUDY_SIZE", "SMALL_MGN", "SIGNED", "HISTNOISE", "WALK", "
            "AXIS_SWELL10_CM", "FOLLOW_NOHIST_CM", "FOLLOW_NOHIST_CM_FRAME", "FOLLOW_HOLD",
            "FOLLOW_KSTEP", "FOLLOW_KSTEP6", "FOLLOW_SPEED", "NOISE", "ROTATION", "HISTORY",
            "DIRECTION", "DIRSPEED", "DIRSPEED3", "DIRSPEED_LAST", "FOLLOW_ROOM", "FOLLOW_SPEED30",
-           "FOLLOW_SPEED50", "FOLLOW_ROOM30", "FOLLOW_ROOM30_WIDE", "FOLLOW_SHAPE30",
+           "FOLLOW_SPEED50", "FOLLOW_ROOM30", "FOLLOW_ROOM30_WIDE", "FOLLOW_ROOM30_OUTLET",
+           "FOLLOW_SHAPE30",
            "FOLLOW_SPEED30_W07", "FOLLOW_ROOM30_W07", "FOLLOW_CLEAR30",
            "NOHIST_ROLLOUT",
            "SPEED03", "SPEED10", "TSCALE"]
@@ -198,6 +199,11 @@ FOLLOW_ROOM30 = {**FOLLOW_SPEED30, "wall_clot_mean": True}
 # vessel is 0.7-1.2 r, so at 0.5 r most clot nodes see no wall and the room saturates
 # (rungs ``follow_room30_wide_*``)
 FOLLOW_ROOM30_WIDE = {**FOLLOW_ROOM30, "wall_features": 1.5}
+# it with the outlet features (``outlet_features`` 2 r: where the clot stands against the
+# vessel's open end): BendVessel's true clot speeds up as it leaves the vessel and the room step
+# did not; with them it does (experiments/results/ladder_budget/bendvessel_speed_noise/,
+# .../clotentry_outlet/; rungs ``follow_room30_outlet_*``)
+FOLLOW_ROOM30_OUTLET = {**FOLLOW_ROOM30, "outlet_features": 2.0}
 # speed noise 0.3 with the clot's shape as an input (``shape_features`` 1 r: each clot node's
 # place along the motion and the clot's length and width): within every ClotEntry simulation the
 # true clot's speed follows its length along the motion (correlation -0.73 to -0.98 of 10-frame

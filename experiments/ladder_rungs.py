@@ -40,6 +40,7 @@ from ladder_recipes import (  # noqa: F401  (COMMON, SMALL_MGN, STUDY_SIZE: for 
     FOLLOW_NOHIST_CM_FRAME,
     FOLLOW_ROOM,
     FOLLOW_ROOM30,
+    FOLLOW_ROOM30_OUTLET,
     FOLLOW_ROOM30_WIDE,
     FOLLOW_SHAPE30,
     FOLLOW_SPEED,
@@ -353,7 +354,8 @@ RUNGS: tuple[Rung, ...] = (
     # it with the k-step loss (3 steps after one push-forward step; 6 steps), last checkpoint,
     # alone and guarded; seeds 0-2 as an ensemble, guarded and alone
     # and with speed noise and wall features (``follow_speed*_*``: noise 0.1, 0.3, 0.5), noise
-    # 0.3 with the room (at 0.5 and 1.5 r) or the clot's shape (``follow_room30*``, ``..._shape30``)
+    # 0.3 with the room (at 0.5 and 1.5 r; with the outlet features) or the clot's shape
+    # (``follow_room30*``, ``..._shape30``)
     # and, with and without the room, warmed up over 0.7 epochs (``*_w07``: for more sims), and
     # noise 0.3 with the clot's clearance instead of its room (``follow_clear30``)
     *(rung for name, recipe in (("follow_kstep", FOLLOW_KSTEP), ("follow_kstep6", FOLLOW_KSTEP6),
@@ -362,6 +364,7 @@ RUNGS: tuple[Rung, ...] = (
                                 ("follow_speed50", FOLLOW_SPEED50),
                                 ("follow_room30", FOLLOW_ROOM30),
                                 ("follow_room30_wide", FOLLOW_ROOM30_WIDE),
+                                ("follow_room30_outlet", FOLLOW_ROOM30_OUTLET),
                                 ("follow_shape30", FOLLOW_SHAPE30),
                                 ("follow_speed30_w07", ladder_recipes.FOLLOW_SPEED30_W07),
                                 ("follow_room30_w07", ladder_recipes.FOLLOW_ROOM30_W07),

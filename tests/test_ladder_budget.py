@@ -70,10 +70,11 @@ def test_ensemble_rung_trains_members_like_the_reused_rung(tmp_path, monkeypatch
 
 
 def test_the_recipes_are_the_ladders_rungs(monkeypatch):
-    """README and docs say `thrombojax train`'s default recipe, `room`, is the ladder's
-    follow_room30_last rung, `--recipe axis` its walk_axis rung, `--recipe history` its
-    history_walk rung, `--recipe rollout` its rotation rung, `--recipe robust` its robust rung
-    (the dirspeed_last rungs' recipe): the dicts must stay equal."""
+    """README and docs say `thrombojax train`'s default recipe, `outlet`, is the ladder's
+    follow_room30_outlet_last rung, `--recipe room` its follow_room30_last rung, `--recipe
+    axis` its walk_axis rung, `--recipe history` its history_walk rung, `--recipe rollout` its
+    rotation rung, `--recipe robust` its robust rung (the dirspeed_last rungs' recipe): the
+    dicts must stay equal."""
     from thrombojax.train.recipes import DEFAULT_RECIPE, recipe
 
     ladder = _ladder(monkeypatch)
@@ -87,7 +88,9 @@ def test_the_recipes_are_the_ladders_rungs(monkeypatch):
     assert {**last.train, "select_by": "last"} == recipe("robust") and last.checkpoint == "last"
     room = rungs["follow_room30_last"]
     assert {**room.train, "select_by": "last"} == recipe("room") and room.checkpoint == "last"
-    assert DEFAULT_RECIPE == "room"
+    outlet = rungs["follow_room30_outlet_last"]
+    assert {**outlet.train, "select_by": "last"} == recipe("outlet")
+    assert outlet.checkpoint == "last" and DEFAULT_RECIPE == "outlet"
 
 
 def test_members_alone_reports_every_seed(tmp_path, monkeypatch):

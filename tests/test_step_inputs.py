@@ -191,7 +191,7 @@ def test_recipes():
     from thrombojax.train.config import TrainConfig
     from thrombojax.train.recipes import DEFAULT_RECIPE, recipe
 
-    assert DEFAULT_RECIPE == "room" and recipe("study") == {}
+    assert DEFAULT_RECIPE == "outlet" and recipe("study") == {}
     assert {k: v for k, v in recipe("axis").items() if k not in recipe("history")} == {
         "axis_features": 2.0}
     assert all(recipe("axis")[k] == v for k, v in recipe("history").items())
@@ -209,6 +209,9 @@ def test_recipes():
         "history": 1, "follow_axis": 2.0, "wall_features": 0.5, "wall_clot_mean": True,
         "clot_mean_weight": 10.0, "speed_noise": 0.3, "select_by": "last"}
     assert cfg.history == 1 and cfg.wall_clot_mean and cfg.follow_axis == 2.0
+    assert {k: v for k, v in recipe("outlet").items() if recipe("room").get(k) != v} == {
+        "outlet_features": 2.0}
+    assert TrainConfig(**recipe("outlet")).outlet_features == 2.0
     with pytest.raises(ConfigError, match="unknown recipe"):
         recipe("fast")
 
@@ -225,7 +228,7 @@ def test_cli_offers_every_recipe():
 
 
 def test_cli_trains_with_the_default_recipe_and_reloads_the_step(tmp_path):
-    """`thrombojax train` without --config uses the default (room) recipe, options given on
+    """`thrombojax train` without --config uses the default (outlet) recipe, options given on
     the command line above it; the run records the frame and the wall cutoff; the loaded
     model steps as it trained (the recipe's prior and history included); a rollout runs
     through it."""
@@ -248,6 +251,8 @@ def test_cli_trains_with_the_default_recipe_and_reloads_the_step(tmp_path):
     assert loaded.step.wall_cutoff == pytest.approx(loaded.config["wall_cutoff"])
     assert loaded.step.wall_cutoff > 0 and loaded.step.wall_clot_mean and cfg.wall_clot_mean
     assert loaded.run.train.axis_features == 2.0 and loaded.step.axis_radius > 0  # the default
+    assert cfg.outlet_features == 2.0 and loaded.step.outlet_radius > 0  # the default's outlet
+    assert loaded.step.outlet_radius == pytest.approx(loaded.config["outlet_radius"])
     report = rollout_run(run, data, tmp_path / "rollout", progress=False, gif=False)
     sims = report["simulations"]
     assert sims and all("NaN" not in json.dumps(r["summary"]) for r in sims.values())

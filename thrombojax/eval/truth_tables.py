@@ -17,6 +17,7 @@ import numpy as np
 
 from thrombojax.eval.physical import CV_LABEL, ratio
 from thrombojax.eval.tables import markdown_table
+from thrombojax.simulator.guard_set import FIXED_COHERENCE_R
 
 __all__ = ["evaluate_markdown", "rollout_markdown"]
 
@@ -139,7 +140,7 @@ def _guard_lines(result: Mapping) -> str:
            f"frame {fit['start']}" if fit else "fixed")
     centring, tolerance = result.get("centring_r"), result.get("coherence_r")
     return (f"Guards: on: containment; coherence with a tolerance of "
-            f"{1.0 if tolerance is None else tolerance:.3g} r ({how})"
+            f"{FIXED_COHERENCE_R if tolerance is None else tolerance:.3g} r ({how})"
             + (f"; centring within {centring:.3g} r" if centring is not None else "") + ".\n\n")
 
 

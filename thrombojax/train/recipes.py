@@ -1,6 +1,28 @@
 """Named training recipes: sets of :class:`~thrombojax.train.config.TrainConfig` fields.
 
-* ``"room"`` (the default of ``thrombojax train`` and ``make demo``): ``axis`` without the
+* ``"outlet"`` (the default of ``thrombojax train`` and ``make demo``): ``room`` plus the
+  outlet features (``outlet_features=2.0``: every clot node reads where the clot stands against
+  the vessel's open end, per node and clot-wide,
+  :func:`thrombojax.graph.vessel_axis.outlet_features`), so the step speeds the clot up as it
+  leaves the vessel, where ``room``'s step holds it back. The stability ladder's
+  ``follow_room30_outlet_last`` rung. Measured against ``room`` on the same seeds (guarded at
+  the fitted coherence tolerance):
+
+  - BendVessel's held-out simulations (seeds 0 and 1, 37 epochs): 0.76 / 0.94 r off at the end
+    (``room``: 2.24 / 1.62 r), the two as one ensemble 0.69 r (1.93 r); the exit costs 0.63 /
+    0.90 r instead of 1.89 / 1.64 r; one step 2.5-2.8x CV in the rollout phase (6.0x); alone
+    24-26 % of the clot outside at worst (26-31 %)
+    (``experiments/results/ladder_budget/bendvessel_speed_noise/``);
+  - ClotEntry's held-out pair (2-epoch seeds 13-16): 0.84-3.98 r, mean 2.06 r (``room``:
+    0.85-4.73 r, mean 2.71 r), the four as one ensemble 1.63 r (1.31 r), none outside: two
+    seeds nearer, two farther, within the seed-to-seed spread
+    (``experiments/results/ladder_budget/clotentry_outlet/``);
+  - ``make demo``, the same day and data: 0.02x CV over the rollout and 1.11 r at the end
+    (``room``: 0.08x, 2.40 r) (``experiments/results/demo/``).
+
+  An epoch costs about 9 % more than ``room``'s (the outlet features search the vessel nodes
+  around every clot node). Its features need a dense search: at most 8,192 nodes per sample.
+* ``"room"`` (the default before ``outlet``): ``axis`` without the
   history frame (``history=1``) plus what made ClotEntry's rollouts follow the vessel: the
   vessel-following prior (``follow_axis=2.0``: the step moves the clot along the vessel axis at
   its speed and the model learns the rest), wall features cut off at 0.5 vessel radii with the
@@ -91,6 +113,16 @@ _HISTORY = {
     "noise_walk": True,
 }
 _AXIS = {**_HISTORY, "axis_features": 2.0}
+_ROOM = {  # `axis` without the history frame, plus:
+    **_AXIS,
+    "history": 1,
+    "follow_axis": 2.0,
+    "wall_features": 0.5,
+    "wall_clot_mean": True,
+    "clot_mean_weight": 10.0,
+    "speed_noise": 0.3,
+    "select_by": "last",
+}
 
 RECIPES: types.MappingProxyType = types.MappingProxyType({
     "rollout": types.MappingProxyType({
@@ -112,21 +144,13 @@ RECIPES: types.MappingProxyType = types.MappingProxyType({
         "direction_noise": 0.1,
         "select_by": "last",
     }),
-    "room": types.MappingProxyType({  # `axis` without the history frame, plus:
-        **_AXIS,
-        "history": 1,
-        "follow_axis": 2.0,
-        "wall_features": 0.5,
-        "wall_clot_mean": True,
-        "clot_mean_weight": 10.0,
-        "speed_noise": 0.3,
-        "select_by": "last",
-    }),
+    "room": types.MappingProxyType(dict(_ROOM)),
+    "outlet": types.MappingProxyType({**_ROOM, "outlet_features": 2.0}),
     "study": types.MappingProxyType({}),
 })
 """Recipe name -> the TrainConfig fields it sets (read-only)."""
 
-DEFAULT_RECIPE: str = "room"
+DEFAULT_RECIPE: str = "outlet"
 
 
 def recipe(name: str) -> dict:
