@@ -41,3 +41,18 @@ python experiments/results/ladder_budget/bendvessel_speed_noise/track_table.py -
     outlet_s0_auto,hold_s0_auto,outlet_s1_auto,hold_s1_auto,outlet_e2_auto,hold_e2_auto,outlet_s0_alone,hold_s0_alone,outlet_s1_alone,hold_s1_alone
 # The vessel-following prior alone, no model
 python $OUT/prior_drift.py data/bendvessel.h5 bendvessel_005,bendvessel_012,bendvessel_019 > $OUT/prior_drift.md
+# The centring guard (rollout time) on the outlet recipe's seeds and ensemble, at auto (0.0817 r:
+# fit_centring on the 16 training simulations, what `thrombojax rollout --centring auto` picks),
+# guarded at auto; written to /work/exp/s91/bv_eval_c/{heldout,validation} and copied into centring/
+CAUTO=0.08172344416379929
+ROWS=""
+for m in s0 s1 e2; do
+    case $m in e2) RUN=${R90}/bv_outlet_s0+${R90}/bv_outlet_s1 ;; *) RUN=${R90}/bv_outlet_$m ;; esac
+    ROWS="$ROWS outlet_${m}_auto=$RUN:guards,tolerance_r=$AUTO outlet_${m}_centre=$RUN:guards,tolerance_r=$AUTO,centring_r=$CAUTO"
+done
+python $CE $OUT/centring/heldout data/bendvessel.h5 bendvessel_005,bendvessel_012,bendvessel_019 \
+    "BendVessel, held out: the outlet recipe's seeds 0 and 1 and their ensemble, guarded at auto (0.207 r), without and with the centring guard at auto (0.082 r)" $ROWS
+python $CE --sims-kind "validation simulation" $OUT/centring/validation data/bendvessel.h5 bendvessel_009 \
+    "BendVessel, validation: the same rows" $ROWS
+python experiments/results/ladder_budget/bendvessel_speed_noise/track_table.py --out $OUT/centring/track.md $OUT/centring/heldout \
+    outlet_s0_auto,outlet_s0_centre,outlet_s1_auto,outlet_s1_centre,outlet_e2_auto,outlet_e2_centre
