@@ -19,9 +19,9 @@ import sys
 import numpy as np
 
 from thrombojax.data.radius import vessel_radius
-from thrombojax.eval.metrics import fit_vessel_wall, signed_wall_distance
+from thrombojax.eval.metrics import fit_vessel_wall, fraction_outside, signed_wall_distance
 from thrombojax.io.hdf5 import open_dataset
-from thrombojax.types import NodeType
+from thrombojax.types import clot_mask
 
 
 def depths(path: pathlib.Path, radius: float) -> tuple[float, np.ndarray]:
@@ -31,10 +31,10 @@ def depths(path: pathlib.Path, radius: float) -> tuple[float, np.ndarray]:
     sim = ds[name]
     pos, nt = np.asarray(sim.positions), np.asarray(sim.node_type)
     wall = fit_vessel_wall(pos[0], nt, wall_cells=sim.wall_cells)
-    clot = pos[:, nt != NodeType.VESSEL]
-    s, past = signed_wall_distance(wall, clot, return_past_end=True)
-    out = (s > 0.5 * wall.spacing) & ~past
-    return float(out.mean(axis=1).max()), s[out] / radius
+    clot = clot_mask(nt)
+    share = float(fraction_outside(wall, pos, clot).max())  # the rollout tables' figure
+    s, past = signed_wall_distance(wall, pos[:, clot], return_past_end=True)
+    return share, s[(s > 0.5 * wall.spacing) & ~past] / radius  # fraction_outside's test
 
 
 def main() -> None:
