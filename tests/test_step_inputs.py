@@ -238,7 +238,8 @@ def test_cli_trains_with_the_default_recipe_and_reloads_the_step(tmp_path):
     from thrombojax.train.state import load_trained
 
     data, run = train_tiny_cli(tmp_path, "--wall-features", "2", "--wall-clot-mean", "--frame",
-                               "vessel", n_nodes=80)
+                               "vessel", "--centre-pull", "0.5", "--centre-tolerance", "auto",
+                               n_nodes=80)
     loaded = load_trained(run)
     cfg = loaded.run.train
     assert (cfg.frame, cfg.history, cfg.noise_walk, cfg.rollout_steps) == ("vessel", 1, True, 1)
@@ -253,6 +254,13 @@ def test_cli_trains_with_the_default_recipe_and_reloads_the_step(tmp_path):
     assert loaded.run.train.axis_features == 2.0 and loaded.step.axis_radius > 0  # the default
     assert cfg.outlet_features == 2.0 and loaded.step.outlet_radius > 0  # the default's outlet
     assert loaded.step.outlet_radius == pytest.approx(loaded.config["outlet_radius"])
+    # the centring pull: a vessel radius is half the prior's width of 2 radii
+    assert (cfg.centre_pull, loaded.step.centre_pull) == (0.5, 0.5)
+    assert loaded.step.centre_unit == pytest.approx(loaded.step.prior_radius / 2)
+    fit = loaded.config["centre_tolerance_fit"]  # auto: fitted on the training simulations
+    assert fit["simulations"] == list(loaded.split.train) and fit["frames"] > 0
+    assert loaded.step.centre_tolerance == pytest.approx(
+        fit["centre_tolerance_r"] * loaded.step.centre_unit)
     report = rollout_run(run, data, tmp_path / "rollout", progress=False, gif=False)
     sims = report["simulations"]
     assert sims and all("NaN" not in json.dumps(r["summary"]) for r in sims.values())

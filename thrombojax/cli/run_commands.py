@@ -189,6 +189,14 @@ def _add_train(sub) -> None:
                    "the vessel's cross-section at the clot's centroid, over this many radii "
                    "(the width that sets the clot's speed, unchanged when the clot drifts "
                    "across the vessel; default 0: off)")
+    p.add_argument("--centre-pull", type=NN_FLOAT, help="with --follow-axis: the share (at "
+                   "most 1) of the clot centroid's offset from the middle of the vessel's "
+                   "cross-section that the prior takes back every step, turning its velocities "
+                   "toward the middle at their speed (default 0: off)")
+    p.add_argument("--centre-tolerance", type=auto_radii, metavar="R", help="with "
+                   "--centre-pull: the centroid's offset from the middle, in vessel radii, left "
+                   "alone; 'auto': the median of the true clots' offsets over the training "
+                   "simulations' frames (default 0)")
     p.add_argument("--rest-edges", action="store_true", default=None, help="meshgraphnet: "
                    "give clot-clot edges their displacement in the clot's rest state (the "
                    "simulation's first frame) beside the current one, so the step sees strain")
@@ -231,7 +239,8 @@ def _run_train(args) -> int:
              "stretch_noise", "time_scale", "clot_mean_weight", "wall_loss_weight",
              "average_weights", "select_by",
              "axis_features", "follow_axis", "lateral_hold", "outlet_features",
-             "shape_features", "clearance_features", "section_features", "rest_edges",
+             "shape_features", "clearance_features", "section_features", "centre_pull",
+             "centre_tolerance", "rest_edges",
              "init_from", "init_which")
     overrides = {k: getattr(args, k) for k in names if getattr(args, k) is not None}
     from thrombojax.train.recipes import DEFAULT_RECIPE, recipe

@@ -112,6 +112,7 @@ def axis_speed_velocity(v: jax.Array, t: jax.Array) -> jax.Array:
 def follow_axis_offset(
     x_prev: jax.Array, x_cur: jax.Array, node_type: jax.Array, mask: jax.Array, *,
     radius: float, patch: jax.Array | None = None, axis: jax.Array | None = None,
+    pull: jax.Array | None = None,
 ) -> jax.Array:
     """``[N, 3]``: what turns each clot node's velocity onto the vessel's axis, keeping its speed.
 
@@ -126,10 +127,20 @@ def follow_axis_offset(
         x_prev, x_cur: ``[N, 3]`` positions s_{t-1}, s_t. node_type: ``[N]`` NodeType.
         mask: ``[N]`` real nodes. radius, patch: see :func:`vessel_axis`.
         axis: see :func:`axis_velocity_features`.
+        pull: ``[3]`` a displacement every clot node's turned velocity ``w_i`` is tilted by,
+            at the same speed: ``|w_i| (w_i + pull) / |w_i + pull|`` (the centring pull of
+            :func:`thrombojax.graph.section.centre_pull`; the speed is kept, so a pull repeated
+            every step does not feed back into the clot's pace). None: no tilt.
     """
     t = vessel_axis(x_cur, node_type, mask, radius=radius, patch=patch) if axis is None else axis
     v = x_cur - x_prev
-    offset = axis_speed_velocity(v, t) - v
+    w = axis_speed_velocity(v, t)
+    if pull is not None:
+        tilted = w + pull
+        w = tilted * jnp.sqrt(jnp.maximum(jnp.sum(w * w, axis=-1, keepdims=True), 1e-30)
+                              / jnp.maximum(jnp.sum(tilted * tilted, axis=-1, keepdims=True),
+                                            1e-30))
+    offset = w - v
     defined = jnp.sum(t * t, axis=-1, keepdims=True) > 0.5
     return jnp.where(clot_mask(node_type, mask)[:, None] & defined, offset, 0.0)
 

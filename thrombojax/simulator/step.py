@@ -52,6 +52,13 @@ state, the simulation's first frame, at the head of ``x_prev``
 (:mod:`thrombojax.simulator.previous`), and MeshGraphNet's clot-clot edges get their rest-state
 displacement beside the current one (DeepMind's deforming-plate model).
 
+Prior: ``make_step(model, prior_radius=w)`` adds the vessel-following prior to constant
+velocity, every clot node turned onto the vessel's axis at its speed, and the model learns the
+rest; ``centre_pull=K, centre_unit=r`` also tilts those velocities toward the middle of the
+vessel's cross-section, by ``K`` of the clot centroid's offset from it each step, at the same
+speed (:func:`thrombojax.graph.section.centre_pull`): the prior alone has no pull back to the
+middle and carries a clot off it in a bend.
+
 Rollout context: the vessel is rigid, so ``step.context(x0, node_type, mask)`` searches its wall
 once (:mod:`thrombojax.simulator.context`) and every rollout's ``step(..., context=...)`` reads it.
 
@@ -78,7 +85,8 @@ from thrombojax.errors import ConfigError
 from thrombojax.graph.frame import FRAMES, VesselFrame, vessel_frame
 from thrombojax.graph.grid import GridSpec
 from thrombojax.graph.neighbors import graph_overflow
-from thrombojax.graph.vessel_axis import clot_lateral_mean, follow_axis_offset
+from thrombojax.graph.section import centre_pull
+from thrombojax.graph.vessel_axis import clot_lateral_mean, follow_axis_offset, vessel_axis
 from thrombojax.models.registry import Surrogate
 from thrombojax.simulator import previous as prev
 from thrombojax.simulator.context import StepContext, make_context, shared_axes
@@ -156,6 +164,11 @@ class LearnedStep:
             (:func:`thrombojax.graph.clearance.clot_clearance`) / the vessel's width at the
             clot (:func:`thrombojax.graph.section.clot_section_features`) over this length,
             scaled; 0: off.
+        centre_pull, centre_unit, centre_tolerance: with the prior, a share in (0, 1] of the
+            clot centroid's offset from the cross-section's middle beyond ``centre_tolerance``
+            (scaled) that the prior's velocities tilt back per step at their speed
+            (:func:`thrombojax.graph.section.centre_pull`, a vessel radius ``centre_unit``,
+            scaled); 0: off.
         rest_edges: the step also reads the clot's rest state (``x_prev`` led by the
             simulation's first frame, :mod:`thrombojax.simulator.previous`) and the model's
             edges get their rest-state displacement (a model that reads edge features only).
@@ -177,16 +190,25 @@ class LearnedStep:
     rest_edges: bool = False
     clearance_radius: float = 0.0
     section_radius: float = 0.0
+    centre_pull: float = 0.0
+    centre_unit: float = 0.0
+    centre_tolerance: float = 0.0
 
     def __post_init__(self) -> None:
         if self.frame not in FRAMES:
             raise ConfigError(f"learned step: frame must be one of {list(FRAMES)}, "
                               f"got {self.frame!r}")
         for name in ("wall_cutoff", "axis_radius", "prior_radius", "lateral_radius",
-                     "outlet_radius", "shape_radius", "clearance_radius", "section_radius"):
+                     "outlet_radius", "shape_radius", "clearance_radius", "section_radius",
+                     "centre_pull", "centre_unit", "centre_tolerance"):
             if not (getattr(self, name) >= 0 and getattr(self, name) < float("inf")):
                 raise ConfigError(f"learned step: {name} must be a finite number >= 0, "
                                   f"got {getattr(self, name)!r}")
+        if self.centre_pull > 0 and not (self.centre_pull <= 1 and self.prior_radius > 0
+                                         and self.centre_unit > 0):
+            raise ConfigError(f"learned step: centre_pull {self.centre_pull!r} needs to be <= 1, "
+                              "with the vessel-following prior (prior_radius > 0) and a vessel "
+                              "radius (centre_unit > 0)")
         if self.wall_clot_mean and not self.wall_cutoff > 0:
             raise ConfigError("learned step: wall_clot_mean needs wall features (wall_cutoff > 0)")
         if not isinstance(self.history, int) or isinstance(self.history, bool) or \
@@ -284,9 +306,14 @@ class LearnedStep:
         the vessel axis of ``x_cur`` at ``prior_radius`` if computed before."""
         if self.prior_radius <= 0:
             return 0.0
+        if axis is None:
+            axis = vessel_axis(x_cur, node_type, mask, radius=self.prior_radius,
+                               patch=None if context is None else context.global_patch)
+        pull = None if self.centre_pull <= 0 else centre_pull(
+            x_cur, node_type, mask, unit=self.centre_unit, strength=self.centre_pull,
+            tolerance=self.centre_tolerance, axis=axis)
         return follow_axis_offset(x_last, x_cur, node_type, mask, radius=self.prior_radius,
-                                  patch=None if context is None else context.global_patch,
-                                  axis=axis)
+                                  axis=axis, pull=pull)
 
     def accelerate(self, stats, out, frame, x_prev, x_cur, node_type, mask, context=None,
                    axes=None):
@@ -387,7 +414,8 @@ def make_step(model: Surrogate, frame: str = "global", wall_cutoff: float = 0.0,
               lateral_radius: float = 0.0, wall_clot_mean: bool = False,
               outlet_radius: float = 0.0, shape_radius: float = 0.0,
               rest_edges: bool = False, clearance_radius: float = 0.0,
-              section_radius: float = 0.0) -> LearnedStep:
+              section_radius: float = 0.0, centre_pull: float = 0.0,
+              centre_unit: float = 0.0, centre_tolerance: float = 0.0) -> LearnedStep:
     """The learned simulator of a surrogate in ``frame`` with the options of
     :class:`LearnedStep` (the radii are scaled lengths, 0: off; see the module docstring)."""
     return LearnedStep(model=model, frame=frame, grid=grid, history=history,
@@ -397,4 +425,6 @@ def make_step(model: Surrogate, frame: str = "global", wall_cutoff: float = 0.0,
                        axis_radius=float(axis_radius), prior_radius=float(prior_radius),
                        lateral_radius=float(lateral_radius), outlet_radius=float(outlet_radius),
                        shape_radius=float(shape_radius), clearance_radius=float(clearance_radius),
-                       section_radius=float(section_radius))
+                       section_radius=float(section_radius), centre_pull=float(centre_pull),
+                       centre_unit=float(centre_unit),
+                       centre_tolerance=float(centre_tolerance))

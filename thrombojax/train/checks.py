@@ -39,6 +39,8 @@ _RULES: dict[str, tuple[str, float, bool, bool]] = {
     "shape_features": ("float", 0.0, True, False),
     "clearance_features": ("float", 0.0, True, False),
     "section_features": ("float", 0.0, True, False),
+    "centre_pull": ("float", 0.0, True, False),
+    "centre_tolerance": ("float", 0.0, True, False),
     "noise_gamma": ("float", 0.0, True, False),
     "noise_shared": ("float", 0.0, True, False),
     "wall_noise": ("float", 0.0, True, False),
@@ -64,7 +66,7 @@ _RULES: dict[str, tuple[str, float, bool, bool]] = {
 }
 
 
-_HIGH: dict[str, float] = {"noise_shared": 1.0, "average_weights": 1.0}
+_HIGH: dict[str, float] = {"noise_shared": 1.0, "average_weights": 1.0, "centre_pull": 1.0}
 """Inclusive upper bounds of the fields that have one (``noise_shared``: a share of a variance;
 ``average_weights``: a share of the training steps)."""
 
@@ -105,6 +107,8 @@ def check_train_values(cfg: Any) -> None:
     ``model_config`` an object; upper bounds in :data:`_HIGH`.
     """
     for name in _RULES:
+        if name == "centre_tolerance" and getattr(cfg, name, None) == "auto":
+            continue  # fitted on the training simulations (thrombojax.train.centre_fit)
         if hasattr(cfg, name):
             _check_one(name, getattr(cfg, name))
     check_train_memory(estimate_train_memory(  # one window of one node: a lower bound
@@ -116,6 +120,9 @@ def check_train_values(cfg: Any) -> None:
         if not isinstance(getattr(cfg, flag, False), bool):
             raise ConfigError(f"{_option(flag)} ({flag}) must be true or false, got "
                               f"{getattr(cfg, flag)!r}")
+    if getattr(cfg, "centre_pull", 0.0) > 0 and not getattr(cfg, "follow_axis", 0.0) > 0:
+        raise ConfigError("--centre-pull (centre_pull) needs --follow-axis W > 0 (it tilts the "
+                          "velocities of the vessel-following prior)")
     for flag in ("wall_signed", "wall_clot_mean"):
         if getattr(cfg, flag, False) and not getattr(cfg, "wall_features", 0.0) > 0:
             raise ConfigError(f"{_option(flag)} ({flag}) needs --wall-features C > 0 (the "

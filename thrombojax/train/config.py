@@ -167,6 +167,14 @@ class TrainConfig:
             (also the unit of its windows): the width that sets the clot's speed, which does
             not change when the clot drifts across the vessel (0: off;
             :func:`thrombojax.graph.section.clot_section_features`).
+        centre_pull: with ``follow_axis``, the share in [0, 1] of the clot centroid's offset
+            from the middle of the vessel's cross-section (beyond ``centre_tolerance``) that
+            the prior takes back per step, by tilting its velocities toward the middle at
+            their speed (0: off; :func:`thrombojax.graph.section.centre_pull`).
+        centre_tolerance: the centroid's offset from the middle, in vessel radii, that the
+            centring pull leaves alone; ``"auto"``: the median of the true clots' offsets over
+            the training simulations' frames
+            (:func:`thrombojax.train.centre_fit.fit_pull_tolerance`).
         rest_edges: the step also reads the clot's rest state (the simulation's first frame)
             and MeshGraphNet's clot-clot edges get their rest-state displacement beside the
             current one, so the step sees each edge's strain (DeepMind's deforming plate;
@@ -236,6 +244,8 @@ class TrainConfig:
     shape_features: float = 0.0
     clearance_features: float = 0.0
     section_features: float = 0.0
+    centre_pull: float = 0.0
+    centre_tolerance: float | str = 0.0
     rest_edges: bool = False
     wall_signed: bool = False
     wall_clot_mean: bool = False

@@ -49,6 +49,7 @@ from thrombojax.io.hdf5 import open_dataset
 from thrombojax.models.registry import canonical_name, config_to_dict, create_model, get_config
 from thrombojax.simulator.step import make_step
 from thrombojax.study import training_defaults
+from thrombojax.train.centre_fit import centre_tolerance_of
 from thrombojax.train.checks import check_dense_inputs
 from thrombojax.train.config import RunConfig, TrainConfig, load_config_file
 from thrombojax.train.guards import (
@@ -237,6 +238,7 @@ def train(
               or cfg.clearance_features > 0 or cfg.section_features > 0
               or cfg.history_noise > 0 or cfg.select_by == "rollout" else 0.0)
     wall_cutoff = cfg.wall_features * radius
+    centre_tolerance, centre_fit = centre_tolerance_of(cfg, ds, split.train)
     step_fn = make_step(model, cfg.frame, wall_cutoff, history=cfg.history,
                         stop_history_gradient=cfg.stop_history_gradient,
                         wall_signed=cfg.wall_signed, axis_radius=cfg.axis_features * radius,
@@ -246,7 +248,10 @@ def train(
                         outlet_radius=cfg.outlet_features * radius,
                         shape_radius=cfg.shape_features * radius, rest_edges=cfg.rest_edges,
                         clearance_radius=cfg.clearance_features * radius,
-                        section_radius=cfg.section_features * radius)
+                        section_radius=cfg.section_features * radius,
+                        centre_pull=cfg.centre_pull,
+                        centre_unit=radius if cfg.centre_pull > 0 else 0.0,
+                        centre_tolerance=centre_tolerance * radius)
     state = init_state(step_fn, tx, init_key, batch_of(plan_of(epoch=0)[0]),
                        average=cfg.average_weights > 0)
     if cfg.init_from and not resume:  # the weights of another run (fine-tuning)
@@ -260,7 +265,8 @@ def train(
         "lateral_radius": step_fn.lateral_radius, "outlet_radius": step_fn.outlet_radius,
         "shape_radius": step_fn.shape_radius, "units": str(ds.attrs.get("units", "")),
         "clearance_radius": step_fn.clearance_radius,
-        "section_radius": step_fn.section_radius,
+        "section_radius": step_fn.section_radius, "centre_unit": step_fn.centre_unit,
+        "centre_tolerance": step_fn.centre_tolerance, "centre_tolerance_fit": centre_fit,
         "steps_per_epoch": steps_per_epoch, "total_steps": total_steps, "devices": mesh.size,
         "split": split.to_dict(),
     }

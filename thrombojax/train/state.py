@@ -116,7 +116,10 @@ class TrainedModel:
                          shape_radius=float(self.config.get("shape_radius", 0.0)),
                          rest_edges=self.run.train.rest_edges,
                          clearance_radius=float(self.config.get("clearance_radius", 0.0)),
-                         section_radius=float(self.config.get("section_radius", 0.0)))
+                         section_radius=float(self.config.get("section_radius", 0.0)),
+                         centre_pull=float(getattr(self.run.train, "centre_pull", 0.0)),
+                         centre_unit=float(self.config.get("centre_unit", 0.0)),
+                         centre_tolerance=float(self.config.get("centre_tolerance", 0.0)))
 
 
 def _manager(directory: pathlib.Path, *, read_only: bool = False) -> ocp.CheckpointManager:
