@@ -61,6 +61,20 @@ def _weighted_mean(w: jax.Array, x: jax.Array) -> tuple[jax.Array, jax.Array]:
     return jnp.sum(w[:, None] * x, axis=0) / jnp.maximum(total, 1e-30), total
 
 
+def _clot_centroid(what: str, x, node_type, mask, name: str, length: float):
+    """``(x, clot, vessel, c, n_clot)``: ``x`` a constant to differentiation, the real clot and
+    vessel nodes, the clot's centroid and node count; raises ValueError naming ``what`` when
+    the length ``name`` is not > 0."""
+    if not length > 0:
+        raise ValueError(f"{what}: {name} must be > 0, got {length!r}")
+    x = jax.lax.stop_gradient(x)
+    mask = jnp.asarray(mask, bool)
+    clot = clot_mask(node_type, mask)
+    vessel = mask & (jnp.asarray(node_type) == NodeType.VESSEL)
+    c, n_clot = _weighted_mean(clot.astype(x.dtype), x)
+    return x, clot, vessel, c, n_clot
+
+
 def _section(x: jax.Array, vessel: jax.Array, p: jax.Array, unit: float,
              t: jax.Array | None = None):
     """``(R, t, m, ok)`` of the module's steps 1-3 at ``p`` (``t`` given: the axis is not
@@ -112,13 +126,8 @@ def clot_section_features(
     Raises:
         ValueError: ``scale`` not > 0.
     """
-    if not scale > 0:
-        raise ValueError(f"section features: scale must be > 0, got {scale!r}")
-    x = jax.lax.stop_gradient(x)
-    mask = jnp.asarray(mask, bool)
-    clot = clot_mask(node_type, mask)
-    vessel = mask & (jnp.asarray(node_type) == NodeType.VESSEL)
-    c, n_clot = _weighted_mean(clot.astype(x.dtype), x)
+    x, clot, vessel, c, n_clot = _clot_centroid("section features", x, node_type, mask,
+                                                 "scale", scale)
     width, _, ok = section_width(x, vessel, c, unit=scale)
     keep = clot & (n_clot > 0) & ok
     return jnp.where(keep, width / scale, 0.0)[:, None].astype(x.dtype)
@@ -151,13 +160,8 @@ def section_offset(
     Returns:
         ``(offset [3], ok [])`` in the units of ``x``.
     """
-    if not unit > 0:
-        raise ValueError(f"section offset: unit must be > 0, got {unit!r}")
-    x = jax.lax.stop_gradient(x)
-    mask = jnp.asarray(mask, bool)
-    clot = clot_mask(node_type, mask)
-    vessel = mask & (jnp.asarray(node_type) == NodeType.VESSEL)
-    c, n_clot = _weighted_mean(clot.astype(x.dtype), x)
+    x, clot, vessel, c, n_clot = _clot_centroid("section offset", x, node_type, mask, "unit",
+                                                 unit)
     t = None
     if axis is not None:  # the clot's mean axis, sign-free: the main direction of t_i t_i^T
         a = jnp.where(clot[:, None], jax.lax.stop_gradient(axis), 0.0)
