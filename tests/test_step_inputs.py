@@ -230,8 +230,8 @@ def test_cli_offers_every_recipe():
 def test_cli_trains_with_the_default_recipe_and_reloads_the_step(tmp_path):
     """`thrombojax train` without --config uses the default (outlet) recipe, options given on
     the command line above it; the run records the frame and the wall cutoff; the loaded
-    model steps as it trained (the recipe's prior and history included); a rollout runs
-    through it."""
+    model steps as it trained (the recipe's prior and history included, and the centring
+    pull given on the command line with its tolerance fitted); a rollout runs through it."""
     from dataset_factory import train_tiny_cli
 
     from thrombojax.eval.report import rollout_run
