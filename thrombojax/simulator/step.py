@@ -53,11 +53,7 @@ state, the simulation's first frame, at the head of ``x_prev``
 displacement beside the current one (DeepMind's deforming-plate model).
 
 Prior: ``make_step(model, prior_radius=w)`` adds the vessel-following prior to constant
-velocity, every clot node turned onto the vessel's axis at its speed, and the model learns the
-rest; ``centre_pull=K, centre_unit=r`` also tilts those velocities toward the middle of the
-vessel's cross-section, by ``K`` of the clot centroid's offset from it each step, at the same
-speed (:func:`thrombojax.graph.section.centre_pull`): the prior alone has no pull back to the
-middle and carries a clot off it in a bend.
+velocity, and the model learns the rest (:mod:`thrombojax.simulator.step_options`).
 
 Rollout context: the vessel is rigid, so ``step.context(x0, node_type, mask)`` searches its wall
 once (:mod:`thrombojax.simulator.context`) and every rollout's ``step(..., context=...)`` reads it.
@@ -82,11 +78,10 @@ import numpy as np
 from flax import struct
 
 from thrombojax.errors import ConfigError
-from thrombojax.graph.frame import FRAMES, VesselFrame, vessel_frame
+from thrombojax.graph.frame import VesselFrame, vessel_frame
 from thrombojax.graph.grid import GridSpec
 from thrombojax.graph.neighbors import graph_overflow
-from thrombojax.graph.section import centre_pull
-from thrombojax.graph.vessel_axis import clot_lateral_mean, follow_axis_offset, vessel_axis
+from thrombojax.graph.vessel_axis import clot_lateral_mean
 from thrombojax.models.registry import Surrogate
 from thrombojax.simulator import previous as prev
 from thrombojax.simulator.context import StepContext, make_context, shared_axes
@@ -97,6 +92,7 @@ from thrombojax.simulator.kinematics import (
     past_accelerations,
     target_acceleration,
 )
+from thrombojax.simulator.step_options import check_step_options, step_prior
 from thrombojax.types import ModelInput, TargetStats
 
 __all__ = ["StepOutput", "StepContext", "LearnedStep", "make_step", "make_input",
@@ -195,29 +191,7 @@ class LearnedStep:
     centre_tolerance: float = 0.0
 
     def __post_init__(self) -> None:
-        if self.frame not in FRAMES:
-            raise ConfigError(f"learned step: frame must be one of {list(FRAMES)}, "
-                              f"got {self.frame!r}")
-        for name in ("wall_cutoff", "axis_radius", "prior_radius", "lateral_radius",
-                     "outlet_radius", "shape_radius", "clearance_radius", "section_radius",
-                     "centre_pull", "centre_unit", "centre_tolerance"):
-            if not (getattr(self, name) >= 0 and getattr(self, name) < float("inf")):
-                raise ConfigError(f"learned step: {name} must be a finite number >= 0, "
-                                  f"got {getattr(self, name)!r}")
-        if self.centre_pull > 0 and not (self.centre_pull <= 1 and self.prior_radius > 0
-                                         and self.centre_unit > 0):
-            raise ConfigError(f"learned step: centre_pull {self.centre_pull!r} needs to be <= 1, "
-                              "with the vessel-following prior (prior_radius > 0) and a vessel "
-                              "radius (centre_unit > 0)")
-        if self.wall_clot_mean and not self.wall_cutoff > 0:
-            raise ConfigError("learned step: wall_clot_mean needs wall features (wall_cutoff > 0)")
-        if not isinstance(self.history, int) or isinstance(self.history, bool) or \
-                self.history < 1:
-            raise ConfigError(f"learned step: history must be an int >= 1 (frames before t), "
-                              f"got {self.history!r}")
-        if self.rest_edges and not getattr(self.model, "rest_edges", False):
-            raise ConfigError(f"learned step: model '{self.model.name}' has no edge features "
-                              f"to give rest-state displacements to (rest_edges: meshgraphnet)")
+        check_step_options(self)
 
     def previous(self, positions, t, rest=None):
         """The ``x_prev`` of frame(s) ``t >= 1`` (int or int array) of a trajectory ``positions
@@ -304,16 +278,7 @@ class LearnedStep:
         """What the step adds to constant velocity before the model's acceleration: the
         vessel-following offset (``prior_radius > 0``) or 0; ``x_last`` is s_{t-1}; ``axis``:
         the vessel axis of ``x_cur`` at ``prior_radius`` if computed before."""
-        if self.prior_radius <= 0:
-            return 0.0
-        if axis is None:
-            axis = vessel_axis(x_cur, node_type, mask, radius=self.prior_radius,
-                               patch=None if context is None else context.global_patch)
-        pull = None if self.centre_pull <= 0 else centre_pull(
-            x_cur, node_type, mask, unit=self.centre_unit, strength=self.centre_pull,
-            tolerance=self.centre_tolerance, axis=axis)
-        return follow_axis_offset(x_last, x_cur, node_type, mask, radius=self.prior_radius,
-                                  axis=axis, pull=pull)
+        return step_prior(self, x_last, x_cur, node_type, mask, context, axis)
 
     def accelerate(self, stats, out, frame, x_prev, x_cur, node_type, mask, context=None,
                    axes=None):

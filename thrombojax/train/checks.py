@@ -14,7 +14,7 @@ from typing import Any
 from thrombojax.errors import ConfigError
 from thrombojax.train.memory import check_train_memory, estimate_train_memory
 
-__all__ = ["check_train_values"]
+__all__ = ["check_train_values", "uses_vessel_radius"]
 
 # field -> (kind, lower bound, bound inclusive, may be None)
 _RULES: dict[str, tuple[str, float, bool, bool]] = {
@@ -152,3 +152,13 @@ def check_dense_inputs(cfg, budget: int, where: str = "") -> None:
                           f"densely, for at most {DENSE_PLANE_NODES} nodes per sample; the "
                           f"samples have {budget}: subsample them (--nodes-per-sample N) or "
                           "turn those options off (e.g. --axis-features 0)")
+
+
+def uses_vessel_radius(cfg) -> bool:
+    """Whether a training config has an option measured in vessel radii (the training loop
+    then reads the dataset's vessel radius, possibly a geometric estimate)."""
+    return (cfg.noise_std > 0 or cfg.wall_features > 0 or cfg.wall_noise > 0
+            or cfg.axis_features > 0 or cfg.follow_axis > 0 or cfg.lateral_hold > 0
+            or cfg.outlet_features > 0 or cfg.shape_features > 0
+            or cfg.clearance_features > 0 or cfg.section_features > 0
+            or cfg.history_noise > 0 or cfg.select_by == "rollout")

@@ -50,7 +50,7 @@ from thrombojax.models.registry import canonical_name, config_to_dict, create_mo
 from thrombojax.simulator.step import make_step
 from thrombojax.study import training_defaults
 from thrombojax.train.centre_fit import centre_tolerance_of
-from thrombojax.train.checks import check_dense_inputs
+from thrombojax.train.checks import check_dense_inputs, uses_vessel_radius
 from thrombojax.train.config import RunConfig, TrainConfig, load_config_file
 from thrombojax.train.guards import (
     NonFiniteError,
@@ -231,12 +231,7 @@ def train(
                                  nodes_per_sample=cfg.nodes_per_sample, rest=cfg.rest_edges)
     run_key, init_key = jax.random.split(jax.random.PRNGKey(cfg.seed))
     # radii -> scaled; the radius (possibly a geometric estimate) only when it is needed
-    radius = (vessel_radius(ds) / float(scaling.scale)
-              if cfg.noise_std > 0 or cfg.wall_features > 0 or cfg.wall_noise > 0
-              or cfg.axis_features > 0 or cfg.follow_axis > 0 or cfg.lateral_hold > 0
-              or cfg.outlet_features > 0 or cfg.shape_features > 0
-              or cfg.clearance_features > 0 or cfg.section_features > 0
-              or cfg.history_noise > 0 or cfg.select_by == "rollout" else 0.0)
+    radius = vessel_radius(ds) / float(scaling.scale) if uses_vessel_radius(cfg) else 0.0
     wall_cutoff = cfg.wall_features * radius
     centre_tolerance, centre_fit = centre_tolerance_of(cfg, ds, split.train)
     step_fn = make_step(model, cfg.frame, wall_cutoff, history=cfg.history,
@@ -249,8 +244,7 @@ def train(
                         shape_radius=cfg.shape_features * radius, rest_edges=cfg.rest_edges,
                         clearance_radius=cfg.clearance_features * radius,
                         section_radius=cfg.section_features * radius,
-                        centre_pull=cfg.centre_pull,
-                        centre_unit=radius if cfg.centre_pull > 0 else 0.0,
+                        centre_pull=cfg.centre_pull, centre_unit=radius * (cfg.centre_pull > 0),
                         centre_tolerance=centre_tolerance * radius)
     state = init_state(step_fn, tx, init_key, batch_of(plan_of(epoch=0)[0]),
                        average=cfg.average_weights > 0)
