@@ -54,3 +54,26 @@ python $CE --nodes 2048 $OUT/clotentry/a data/clotentry.h5 clotentry_008,clotent
 python $CE --nodes 2048 $OUT/clotentry/b data/clotentry.h5 clotentry_008,clotentry_009 "$T" \
     p14_auto=$R/ce_pull_s14:guards,tolerance_r=$CAUTO oe2_auto=$R91/ce_out_s13+$R91/ce_out_s14:guards,tolerance_r=$CAUTO &
 wait
+# Inference only: the outlet seeds 0 and 1 (trained without the pull) rolled out with the pull
+# added to their prior. Each run folder is a copy of the outlet run (checkpoints linked) whose
+# config.json gets train.centre_pull = 0.5, train.centre_tolerance = 0, centre_unit =
+# prior_radius / 2 (a vessel radius, scaled) and centre_tolerance = 0; nothing is retrained.
+for s in 0 1; do
+    d=$R/infer/outlet_pull_s$s; mkdir -p $d; ln -sfn $R90/bv_outlet_s$s/checkpoints $d/checkpoints
+    python - "$R90/bv_outlet_s$s/config.json" "$d/config.json" <<'PY'
+import json, sys
+c = json.load(open(sys.argv[1]))
+c["train"].update(centre_pull=0.5, centre_tolerance=0.0)
+c.update(centre_unit=c["prior_radius"] / 2, centre_tolerance=0.0)
+json.dump(c, open(sys.argv[2], "w"), indent=1)
+PY
+done
+ROWS=""
+for m in s0 s1 e2; do
+    case $m in e2) RUN=$R/infer/outlet_pull_s0+$R/infer/outlet_pull_s1 ;; *) RUN=$R/infer/outlet_pull_$m ;; esac
+    ROWS="$ROWS inferpull_${m}_alone=$RUN inferpull_${m}_auto=$RUN:guards,tolerance_r=$AUTO"
+done
+python $CE $OUT/inference/heldout data/bendvessel.h5 bendvessel_005,bendvessel_012,bendvessel_019 \
+    "BendVessel, held out: the outlet recipe's seeds 0 and 1 and their ensemble, trained without the pull, rolled out with --centre-pull 0.5 added to their prior (inference only), alone and guarded at auto (0.207 r)" $ROWS
+python $CE --sims-kind "validation simulation" $OUT/inference/validation data/bendvessel.h5 \
+    bendvessel_009 "BendVessel, validation: the same rows" $ROWS
