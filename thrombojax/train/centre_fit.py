@@ -13,6 +13,7 @@ middle gets a wide tolerance. The fit is recorded in the run's ``config.json``
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Sequence
 from typing import Any
 
@@ -38,6 +39,22 @@ leaves 12-14 % of the clot outside on the held-out simulations, against 3-4 % at
 2,048 nodes) the median is 0.14 r, the 95th percentile 0.31 r."""
 
 
+@functools.partial(jax.jit, static_argnames=("radius", "axis_width"))
+def _offsets(positions: jax.Array, node_type: jax.Array, *, radius: float,
+             axis_width: float) -> tuple[jax.Array, jax.Array]:
+    """The compiled body of :func:`pull_offsets` (one compilation per shape and widths, not
+    per call): the wall searched once on the first frame, then a map over the frames."""
+    mask = jnp.ones(node_type.shape[0], bool)
+    patch = wall_patches(positions[0], node_type, mask)
+
+    def one(x):
+        axis = vessel_axis(x, node_type, mask, radius=axis_width, patch=patch)
+        e, ok = section_offset(x, node_type, mask, unit=radius, axis=axis)
+        return jnp.sqrt(jnp.sum(e * e)), ok
+
+    return jax.lax.map(one, positions)
+
+
 def pull_offsets(positions: np.ndarray, node_type: np.ndarray, *, radius: float,
                  axis_width: float) -> tuple[np.ndarray, np.ndarray]:
     """``([T] offset, [T] ok)``: the clot centroid's offset from the cross-section's middle in
@@ -45,17 +62,8 @@ def pull_offsets(positions: np.ndarray, node_type: np.ndarray, *, radius: float,
     the positions), and whether the section has a middle there; ``axis_width``: the prior's
     axis width (units of the positions). One compiled map over the frames, the rigid vessel's
     wall searched once."""
-    nt = jnp.asarray(node_type)
-    mask = jnp.ones(nt.shape[0], bool)
-    positions = jnp.asarray(positions, jnp.float32)
-    patch = jax.jit(wall_patches)(positions[0], nt, mask)
-
-    def one(x):
-        axis = vessel_axis(x, nt, mask, radius=axis_width, patch=patch)
-        e, ok = section_offset(x, nt, mask, unit=radius, axis=axis)
-        return jnp.sqrt(jnp.sum(e * e)), ok
-
-    off, ok = jax.jit(lambda p: jax.lax.map(one, p))(positions)
+    off, ok = _offsets(jnp.asarray(positions, jnp.float32), jnp.asarray(node_type),
+                       radius=float(radius), axis_width=float(axis_width))
     return np.asarray(off) / radius, np.asarray(ok)
 
 
