@@ -176,3 +176,58 @@ def test_auto_tolerance_is_the_quantile_of_the_true_offsets():
     assert (fit["frames"], fit["simulations"]) == (6, ["s0", "s1"])
     low = fit_pull_tolerance(ds, ["s0"], radius=1.0, axis_width=2.0, skip=1, nodes=None, seed=0)
     assert low["frames"] == 2 and low["centre_tolerance_r"] < 0.15
+
+
+class _Trained:
+    """What :func:`thrombojax.eval.rollout_pull.rollout_pull` reads of a trained run."""
+
+    class run:  # noqa: N801
+        class train:  # noqa: N801
+            follow_axis, skip_frames, nodes_per_sample, seed = 2.0, 0, None, 0
+
+    class split:  # noqa: N801
+        train = ("s0", "s1")
+
+
+def test_rollout_time_pull_sets_the_strength_unit_and_fitted_tolerance_or_refuses():
+    """``thrombojax rollout --centre-pull K``: the run's step with the pull at strength K, the
+    rolled-out vessel's radius as its unit, the tolerance given or fitted (``auto``) on the
+    run's training simulations as training fits it; the step then pulls a drifted clot."""
+    from thrombojax.eval.rollout_pull import rollout_pull
+
+    plain = _step(prior_radius=4.0)
+    reads = []
+
+    def training_ds():
+        reads.append(1)
+        tubes = _Tubes()
+        for name, (x, nt, mask) in tubes.sims.items():  # no padding in a dataset
+            tubes.sims[name] = (x, np.where(mask, nt, NodeType.VESSEL), mask)
+        tubes.attrs = {"vessel_radius": 1.0, "skip_frames": 0}
+        return tubes
+
+    kept, record = rollout_pull(plain, _Trained, training_ds, strength=None, tolerance=None,
+                                radius=2.0, run_dir="run")
+    assert kept is plain and record["at"] is None and not reads
+    pulled, record = rollout_pull(plain, _Trained, training_ds, strength=0.5, tolerance=0.25,
+                                  radius=2.0, run_dir="run")
+    assert (pulled.centre_pull, pulled.centre_unit, pulled.centre_tolerance) == (0.5, 2.0, 0.5)
+    assert record == {"at": "rollout", "strength": 0.5, "tolerance_r": 0.25, "fit": None}
+    assert not reads and pulled.prior_radius == plain.prior_radius
+    x, nt, mask = _clot_in_tube(np.random.default_rng(0), centre=(0.0, 0.8, 0.0), speed=0.1,
+                                radius=2.0)
+    args = (jnp.asarray(x[0]), jnp.asarray(x[1]), nt, mask)
+    moved = np.asarray(pulled.prior(*args) - plain.prior(*args))[(nt == NodeType.CLOT) & mask]
+    assert moved[:, 1].mean() < -0.01  # toward the middle (y = 0)
+    auto, record = rollout_pull(plain, _Trained, training_ds, strength=1.0, tolerance="auto",
+                                radius=2.0, run_dir="run")
+    assert reads == [1] and record["fit"]["simulations"] == ["s0", "s1"]
+    assert record["tolerance_r"] == pytest.approx(record["fit"]["centre_tolerance_r"])
+    assert auto.centre_tolerance == pytest.approx(2.0 * record["tolerance_r"])
+    assert 0.1 < record["tolerance_r"] < 0.3  # the median of clots 0.1 r and 0.3 r off
+    for strength, tolerance, step, words in ((None, 0.1, plain, "--centre-pull K"),
+                                             (1.5, None, plain, "(0, 1]"),
+                                             (0.5, 0.0, _step(), "--follow-axis")):
+        with pytest.raises(ConfigError, match=words.replace("(", r"\(").replace("]", r"\]")):
+            rollout_pull(step, _Trained, training_ds, strength=strength, tolerance=tolerance,
+                         radius=2.0, run_dir="run")

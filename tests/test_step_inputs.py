@@ -265,6 +265,23 @@ def test_cli_trains_with_the_default_recipe_and_reloads_the_step(tmp_path):
     sims = report["simulations"]
     assert sims and all("NaN" not in json.dumps(r["summary"]) for r in sims.values())
     assert all(r["n_steps"] > 0 for r in sims.values())
+    assert report["centre_pull"] == {"at": "training", "strength": 0.5, "fit": None,
+                                     "tolerance_r": pytest.approx(fit["centre_tolerance_r"])}
+    # the pull set at rollout time instead (thrombojax.eval.rollout_pull), from the CLI
+    from thrombojax.cli import main
+
+    out = tmp_path / "pulled"
+    assert main(["rollout", "--run", str(run), "--dataset", str(data), "--out", str(out),
+                 "--centre-pull", "1", "--centre-tolerance", "0", "--no-gif", "--quiet"]) == 0
+    pulled = json.loads((out / "rollout.json").read_text())
+    assert pulled["centre_pull"] == {"at": "rollout", "strength": 1.0, "tolerance_r": 0.0,
+                                     "fit": None}
+    assert "Centring pull of the vessel-following prior (set at rollout)" in (
+        out / "rollout.md").read_text()
+    name = next(iter(sims))
+    model = loaded.model.name
+    assert (pulled["simulations"][name]["summary"][model]["mse@full"]
+            != sims[name]["summary"][model]["mse@full"])  # the stronger pull moved the clot
 
 
 def _differing(patch_a, patch_b) -> int:

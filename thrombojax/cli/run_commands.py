@@ -367,6 +367,11 @@ def _add_rollout(sub) -> None:
                    "alone (0.21 r on BendVessel, 0.38 r on ClotEntry; their true clots stray "
                    "up to 0.5 and 1.3 r). Default: auto when the run's dataset is there, "
                    "else 1, with a warning")
+    p.add_argument("--centre-pull", type=NN_FLOAT, metavar="K", help="(a run trained with "
+                   "--follow-axis) the prior's centring pull at strength K in (0, 1], set at "
+                   "rollout time, in the single steps too (default: the run's own, if any)")
+    p.add_argument("--centre-tolerance", type=auto_radii, metavar="R", help="--centre-pull's "
+                   "tolerance in vessel radii; 'auto' (default): the run's training clots' median")
     p.add_argument("--rotations", type=NN_INT, default=0, metavar="R",
                    help="a rotation ensemble: roll the model (every member of an ensemble) "
                    "out on R copies of each simulation, the first unturned, R - 1 turned by "
@@ -384,7 +389,8 @@ def _run_rollout(args) -> int:
                       n_nodes=args.nodes, seed=args.seed, format=args.format,
                       gif=not args.no_gif, force=args.force, progress=not args.quiet,
                       guards=not args.no_guards, rotations=args.rotations, centring_r=args.centring,
-                      coherence_r=args.coherence)
+                      coherence_r=args.coherence, centre_pull=args.centre_pull,
+                      centre_tolerance=args.centre_tolerance)
     print(f"simulations: {res['selection']['how']}")
     print(res["table"], end="")
     print(f"wrote rollouts to {args.out}/")

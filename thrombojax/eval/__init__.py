@@ -13,6 +13,8 @@ clot's size against the truth's),
 :mod:`~thrombojax.eval.pace_fit` (a factor on the learned steps fitted on validation
 simulations so that the clot ends on the true one along its track),
 :mod:`~thrombojax.eval.report` (``thrombojax rollout``: trajectories, ParaView files, plots),
+:mod:`~thrombojax.eval.rollout_pull` (the prior's centring pull set at rollout time,
+``thrombojax rollout --centre-pull``),
 :mod:`~thrombojax.eval.plots` (matplotlib figures and animations),
 :mod:`~thrombojax.eval.bench` (rollout speed, ``thrombojax bench``) and
 :mod:`~thrombojax.eval.tables` (markdown tables, the environment record).

@@ -43,6 +43,7 @@ from thrombojax.eval.coherence_fit import fit_coherence
 from thrombojax.eval.phases import PHASE_HELP
 from thrombojax.eval.physical import curves_in_radii, radius_units, summary_in_radii
 from thrombojax.eval.plots import animate_rollout, plot_error_curves, plot_rollout_metrics
+from thrombojax.eval.rollout_pull import rollout_pull, training_dataset_of
 from thrombojax.eval.rollouts import RolloutResult, rollout_simulation
 from thrombojax.eval.single_step import (
     scaled_simulation,
@@ -183,6 +184,8 @@ def rollout_run(
     rotations: int = 0,
     centring_r: float | str | None = None,
     coherence_r: float | str | None = None,
+    centre_pull: float | None = None,
+    centre_tolerance: float | str | None = None,
 ) -> dict:
     """Roll a trained run out on simulations of a dataset and write trajectories, plots, metrics.
 
@@ -227,6 +230,12 @@ def rollout_run(
             recorded under ``coherence_fit``; an error when that dataset is not there.
             ``None`` (the default): ``"auto"`` when the run's dataset is there, else the fixed
             ``FIXED_COHERENCE_R`` (1 r) with a warning.
+        centre_pull: the vessel-following prior's centring pull at this strength in (0, 1]
+            (a run trained with ``--follow-axis``), at rollout time, in the single steps too
+            (:mod:`thrombojax.eval.rollout_pull`); ``None``: the run's own (trained) pull.
+        centre_tolerance: its tolerance in vessel radii, or ``"auto"`` (the default): the
+            median offset of the run's training clots from the vessel's middle; recorded with
+            the fit under ``centre_pull``.
     Returns:
         JSON-ready summary (also written to ``rollout.json``; tables in ``rollout.md``, the one
         in vessel radii under ``table``).
@@ -244,9 +253,8 @@ def rollout_run(
     else:
         trained = load_trained(run_dir, which=which)
         params = trained.params
-    step, n_members = trained.step, members.n_members if ensemble else 1
+    n_members = members.n_members if ensemble else 1
     if rotations:  # each model on each turned copy: one member per (model, rotation)
-        step = RotatedStep.of(step)
         params = (rotation_members(params, rotations) if ensemble
                   else rotated_params(params, rotations))
         n_members *= int(rotations)
@@ -272,6 +280,12 @@ def rollout_run(
                                         required=coherence_r == "auto")
         coherence_r = coherence_fit["coherence_r"] if coherence_fit else FIXED_COHERENCE_R
     units = radius_units(trained.scaling, ds)
+    base, pull = rollout_pull(
+        trained.step, trained, lambda: training_dataset_of(
+            trained, ds, dataset_path, run_dir, "--centre-tolerance"),
+        strength=centre_pull, tolerance=centre_tolerance, radius=1.0 / units.factor,
+        run_dir=run_dir)
+    step = RotatedStep.of(base) if rotations else base
     out_dir.mkdir(parents=True, exist_ok=True)
     report = {}
     for name in tqdm(names, desc=f"rollout {trained.model.name}", unit="sim",
@@ -289,7 +303,7 @@ def rollout_run(
                      f"{run_dir}: checkpoint '{which}' on simulation '{name}'")
         exit_at = simulation_exit_frame(pos, node_type, sim.wall_cells)
         _, single = single_step_by_phase(
-            trained.step, trained.params, trained.stats, pos[:, res.node_index], res.node_type,
+            base, trained.params, trained.stats, pos[:, res.node_index], res.node_type,
             skip_frames=skip_frames, exit_at=exit_at, units=units)
         files = save_rollout(res, sim, trained.scaling, out_dir, model_name=trained.model.name,
                              format=format, gif=gif, stem=stems[name],
@@ -305,7 +319,7 @@ def rollout_run(
               "selection": {"how": how, "simulations": names}, "skip": skip,
               "skip_frames": skip_frames, "seed": seed, "units": units.to_dict(),
               "guards": bool(guards), "centring_r": centring_r, "centring_fit": centring_fit,
-              "coherence_r": coherence_r, "coherence_fit": coherence_fit,
+              "coherence_r": coherence_r, "coherence_fit": coherence_fit, "centre_pull": pull,
               "checkpoint": which, "ensemble_members": n_members, "rotations": int(rotations),
               "phase_definitions": PHASE_HELP, "date": env["date"], "environment": env,
               "simulations": report}
@@ -316,21 +330,9 @@ def rollout_run(
     return result
 
 
-def _training_dataset(trained, ds, dataset_path, run_dir, option: str):
-    """The run's own dataset (``ds`` when that is the dataset being rolled out), whose training
-    simulations an ``auto`` option (``option``, e.g. ``--centring``) is fitted on."""
-    own = pathlib.Path(trained.run.dataset)
-    if own.is_file() and own.resolve() == pathlib.Path(dataset_path).resolve():
-        return ds
-    if own.is_file():
-        return open_dataset(own)
-    raise ConfigError(f"{run_dir}: {option} auto measures the run's training simulations "
-                      f"in its dataset {own}, which is not there; give {option} a number")
-
-
 def _auto_centring(trained, ds, dataset_path, run_dir) -> dict:
     """``--centring auto``: fit the tolerance on the run's training simulations."""
-    train_ds = _training_dataset(trained, ds, dataset_path, run_dir, "--centring")
+    train_ds = training_dataset_of(trained, ds, dataset_path, run_dir, "--centring")
     return fit_centring(train_ds, trained.split.train, float(vessel_radius(train_ds)))
 
 
@@ -340,7 +342,7 @@ def _auto_coherence(trained, ds, dataset_path, run_dir, *, required: bool) -> di
     default, a run whose dataset is not there (or cannot be fitted) keeps the fixed tolerance
     (None returned) with a warning that says why."""
     try:
-        train_ds = _training_dataset(trained, ds, dataset_path, run_dir, "--coherence-tolerance")
+        train_ds = training_dataset_of(trained, ds, dataset_path, run_dir, "--coherence-tolerance")
         return fit_coherence(train_ds, trained.split.train, float(vessel_radius(train_ds)),
                              study.skip_frames(train_ds))
     except (ConfigError, DatasetError) as err:

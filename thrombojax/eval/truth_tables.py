@@ -144,6 +144,20 @@ def _guard_lines(result: Mapping) -> str:
             + (f"; centring within {centring:.3g} r" if centring is not None else "") + ".\n\n")
 
 
+def _pull_line(result: Mapping) -> str:
+    """One line naming the prior's centring pull, when the rollout's step had one."""
+    pull = result.get("centre_pull") or {}
+    if not pull.get("at"):
+        return ""
+    fit = pull.get("fit")
+    how = (f", the median offset of the run's {len(fit['simulations'])} training simulation(s)' "
+           "clots" if fit else "")
+    tol = pull.get("tolerance_r")
+    return (f"Centring pull of the vessel-following prior (set at {pull['at']}): strength "
+            f"{pull['strength']:.3g}, tolerance "
+            f"{'n/a' if tol is None else format(tol, '.3g')} r{how}.\n\n")
+
+
 def rollout_markdown(result: Mapping) -> tuple[str, str]:
     """``rollout.md`` of a rollout result, and its main table (vessel radii).
 
@@ -174,7 +188,8 @@ def rollout_markdown(result: Mapping) -> tuple[str, str]:
         "over the first h rollout steps (n/a: the rollout is shorter); 1-step MSE: teacher-"
         "forced single steps on the same nodes; max % outside: largest share of clot nodes "
         "through the vessel wall in any frame (the truth's row shows the test's floor).\n\n"
-        + _units_lines(result) + _guard_lines(result) + _phase_lines(result)
+        + _units_lines(result) + _guard_lines(result) + _pull_line(result)
+        + _phase_lines(result)
         + "## In vessel radii\n\n" + table_r
         + "\n## In scaled [-1, 1] coordinates (the study's unit)\n\n" + table_s
         + f"\nDataset length unit: {result['units']['dataset_units'] or 'not recorded'} "

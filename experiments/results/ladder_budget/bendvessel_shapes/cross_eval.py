@@ -16,7 +16,10 @@ alone with a row of its own); ``:guards`` turns the physics guards on, and
 ``thrombojax.simulator.guard_set.build_guards``, e.g. ``:guards,tolerance_r=0.3``, the coherence
 guard's tolerance in vessel radii), except ``rotations=R``: every model also rolled out on
 ``R`` turned copies of each simulation (``fixed_rotations(R)``, the first unturned), all
-members of one ensemble (``thrombojax rollout --rotations R``). Each row's JSON keeps
+members of one ensemble (``thrombojax rollout --rotations R``), and ``centre_pull=K`` with
+``centre_tolerance_r=T``: the vessel-following prior's centring pull set at rollout time
+(``thrombojax rollout --centre-pull K --centre-tolerance T``; a flag other than ``guards``,
+e.g. ``:alone,centre_pull=0.5``, keeps the guards off). Each row's JSON keeps
 the environment it was measured in (``measured``); the tables' closing lines are those of the
 process that wrote them.
 """
@@ -29,8 +32,21 @@ sys.path.insert(0, "experiments")
 from ladder_eval import evaluate_runs  # noqa: E402
 from ladder_report import write_reports  # noqa: E402
 
+from thrombojax.data.radius import vessel_radius  # noqa: E402
 from thrombojax.eval.tables import environment  # noqa: E402
+from thrombojax.io.hdf5 import open_dataset  # noqa: E402
 from thrombojax.io.outputs import atomic_write_text  # noqa: E402
+
+
+def _pull_options(run: str, data: str, strength: float, tolerance_r: float) -> dict | None:
+    """The learned step's fields of a centring pull at rollout time (None: the run's own), in
+    the run's scaled units with the rolled-out vessel's radius as the unit."""
+    if not strength:
+        return None
+    scale = json.loads((pathlib.Path(run) / "config.json").read_text())["scaling"]["scale"]
+    unit = float(vessel_radius(open_dataset(data))) / float(scale)
+    return {"centre_pull": float(strength), "centre_unit": unit,
+            "centre_tolerance": float(tolerance_r) * unit}
 
 
 def main() -> None:
@@ -50,6 +66,9 @@ def main() -> None:
         flag, *options = flag.split(",") if flag else [""]
         guard_options = {k: float(v) for k, v in (o.split("=", 1) for o in options)}
         rotations = int(guard_options.pop("rotations", 0))
+        step_options = _pull_options(runs.split("+")[0], data,
+                                     guard_options.pop("centre_pull", 0.0),
+                                     guard_options.pop("centre_tolerance_r", 0.0))
         guard_options = guard_options or None
         path = out / f"{label}.json"
         if path.is_file():
@@ -62,7 +81,8 @@ def main() -> None:
         print("evaluating", label, flush=True)
         results[label] = evaluate_runs([pathlib.Path(r) for r in runs.split("+")], data,
                                        flag == "guards", nodes, names, "last",
-                                       guard_options=guard_options, rotations=rotations)
+                                       guard_options=guard_options, rotations=rotations,
+                                       step_options=step_options)
         results[label]["measured"] = environment()
         atomic_write_text(path, json.dumps(results[label], indent=1))
     print(write_reports(out, results, title=title, test_sims=names, nodes=nodes,
