@@ -29,3 +29,7 @@ python $CE --nodes 2048 $OUT/clotentry data/clotentry.h5 clotentry_008,clotentry
 # BendVessel: the same pull at rollout time on the outlet seeds 0 and 1 is
 # ../bendvessel_pull/inference/ (measured there through copies of the runs' config.json; the
 # step is the same, the pull's unit the vessel radius, tolerance 0, `auto` being 0.001 r there).
+# The same through the command line, seed 13 on clotentry_008 (cli_seed13_clotentry_008.md is
+# its rollout.md; the tolerance is fitted by --centre-tolerance's default, auto):
+thrombojax rollout --run $R/ce_out_s13 --dataset data/clotentry.h5 --sim clotentry_008 --nodes 2048 \
+  --checkpoint last --coherence-tolerance $CAUTO --centre-pull 0.5 --no-gif --out /work/exp/s93/cli_ce13
