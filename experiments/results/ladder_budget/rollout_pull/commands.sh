@@ -33,3 +33,12 @@ python $CE --nodes 2048 $OUT/clotentry data/clotentry.h5 clotentry_008,clotentry
 # its rollout.md; the tolerance is fitted by --centre-tolerance's default, auto):
 thrombojax rollout --run $R/ce_out_s13 --dataset data/clotentry.h5 --sim clotentry_008 --nodes 2048 \
   --checkpoint last --coherence-tolerance $CAUTO --centre-pull 0.5 --no-gif --out /work/exp/s93/cli_ce13
+# The validation vessel (clotentry_007), the ensemble at strengths 0, 0.25, 0.5 and 1 (measured
+# in two processes into /work/exp/s93/cev/{a,b}, copied here, the table written from all four):
+V=""
+for k in 025:0.25 050:0.5 100:1.0; do
+  V="$V pull${k%%:*}_e4=$E4:guards,tolerance_r=$CAUTO,centre_pull=${k##*:},centre_tolerance_r=$PT"
+done
+python $CE --nodes 2048 --sims-kind "validation simulation" $OUT/clotentry_validation data/clotentry.h5 \
+  clotentry_007 "ClotEntry, validation: the outlet recipe's seeds 13-16 as one ensemble, guarded at auto (0.376 r), without the pull and with it set at rollout time at strengths 0.25, 0.5 and 1 (tolerance 0.138 r)" \
+  outlet_e4=$E4:guards,tolerance_r=$CAUTO $V
