@@ -39,6 +39,11 @@ V=""
 for k in 025:0.25 050:0.5 100:1.0; do
   V="$V pull${k%%:*}_e4=$E4:guards,tolerance_r=$CAUTO,centre_pull=${k##*:},centre_tolerance_r=$PT"
 done
+# and each seed alone without and with 0.5 (into /work/exp/s93/cev2/{a,b}, copied here too):
+S=""
+for s in 13 14 15 16; do
+  S="$S outlet_s$s=$R/ce_out_s$s:guards,tolerance_r=$CAUTO pull050_s$s=$R/ce_out_s$s:guards,tolerance_r=$CAUTO,$P"
+done
 python $CE --nodes 2048 --sims-kind "validation simulation" $OUT/clotentry_validation data/clotentry.h5 \
-  clotentry_007 "ClotEntry, validation: the outlet recipe's seeds 13-16 as one ensemble, guarded at auto (0.376 r), without the pull and with it set at rollout time at strengths 0.25, 0.5 and 1 (tolerance 0.138 r)" \
-  outlet_e4=$E4:guards,tolerance_r=$CAUTO $V
+  clotentry_007 "ClotEntry, validation: the outlet recipe's seeds 13-16 alone and as one ensemble, guarded at auto (0.376 r), without the pull and with it set at rollout time (0.5; the ensemble also at 0.25 and 1; tolerance 0.138 r)" \
+  $S outlet_e4=$E4:guards,tolerance_r=$CAUTO $V
