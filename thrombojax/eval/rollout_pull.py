@@ -17,6 +17,7 @@ import pathlib
 from typing import Any
 
 from thrombojax.errors import ConfigError
+from thrombojax.train.centre_fit import fit_config_tolerance
 
 __all__ = ["rollout_pull", "pull_record", "training_dataset_of"]
 
@@ -52,7 +53,7 @@ def rollout_pull(step: Any, trained: Any, training_ds: Any, *, strength: float |
                           "--follow-axis W)")
     fit = None
     if tolerance is None or tolerance == "auto":
-        fit = _fit(trained, training_ds())
+        fit = fit_config_tolerance(trained.run.train, training_ds(), trained.split.train)
         tolerance = fit["centre_tolerance_r"]
     pulled = dataclasses.replace(step, centre_pull=float(strength), centre_unit=float(radius),
                                  centre_tolerance=float(tolerance) * float(radius))
@@ -66,20 +67,6 @@ def pull_record(step: Any, *, at: str | None, fit: dict | None = None) -> dict[s
     return {"at": at, "strength": float(step.centre_pull) if at else 0.0,
             "tolerance_r": float(step.centre_tolerance / unit) if at and unit > 0 else None,
             "fit": fit}
-
-
-def _fit(trained: Any, ds: Any) -> dict[str, Any]:
-    """The ``auto`` tolerance on the run's training simulations (as training fits it)."""
-    from thrombojax import study
-    from thrombojax.data.radius import vessel_radius
-    from thrombojax.train.centre_fit import fit_pull_tolerance
-
-    cfg = trained.run.train
-    r = float(vessel_radius(ds))
-    follow = float(getattr(cfg, "follow_axis", 0.0))
-    return fit_pull_tolerance(ds, trained.split.train, radius=r, axis_width=follow * r,
-                              skip=max(int(cfg.skip_frames), study.skip_frames(ds)),
-                              nodes=cfg.nodes_per_sample, seed=cfg.seed)
 
 
 def training_dataset_of(trained: Any, ds: Any, dataset_path: Any, run_dir: Any,

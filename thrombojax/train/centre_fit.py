@@ -27,7 +27,8 @@ from thrombojax.graph.section import section_offset
 from thrombojax.graph.vessel_axis import vessel_axis
 from thrombojax.graph.wall_nodes import wall_patches
 
-__all__ = ["AUTO_QUANTILE", "pull_offsets", "fit_pull_tolerance", "centre_tolerance_of"]
+__all__ = ["AUTO_QUANTILE", "pull_offsets", "fit_pull_tolerance", "centre_tolerance_of",
+           "fit_config_tolerance"]
 
 AUTO_QUANTILE: float = 0.5
 """The share of the training frames whose true clot ``--centre-tolerance auto`` leaves alone:
@@ -118,11 +119,19 @@ def centre_tolerance_of(cfg: Any, dataset: Any, train: Sequence[str]
         return float(cfg.centre_tolerance), None
     if not cfg.centre_pull > 0:
         return 0.0, None
+    fit = fit_config_tolerance(cfg, dataset, train)
+    return fit["centre_tolerance_r"], fit
+
+
+def fit_config_tolerance(cfg: Any, dataset: Any, train: Sequence[str]) -> dict[str, Any]:
+    """:func:`fit_pull_tolerance` on the training simulations ``train`` as a training config
+    ``cfg`` reads them (its prior's width ``follow_axis``, ``nodes_per_sample``, ``seed``, and
+    the frames from the dataset's ``skip_frames`` or the config's if later): the ``auto``
+    tolerance of ``thrombojax train`` and of ``thrombojax rollout --centre-pull``."""
     from thrombojax import study
     from thrombojax.data.radius import vessel_radius
 
     r = float(vessel_radius(dataset))
     skip = max(int(cfg.skip_frames), study.skip_frames(dataset))
-    fit = fit_pull_tolerance(dataset, train, radius=r, axis_width=cfg.follow_axis * r,
-                             skip=skip, nodes=cfg.nodes_per_sample, seed=cfg.seed)
-    return fit["centre_tolerance_r"], fit
+    return fit_pull_tolerance(dataset, train, radius=r, axis_width=cfg.follow_axis * r,
+                              skip=skip, nodes=cfg.nodes_per_sample, seed=cfg.seed)
