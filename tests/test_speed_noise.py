@@ -61,6 +61,34 @@ def test_speed_noise_off_and_bad_values():
     assert args.speed_noise == 0.03
 
 
+def test_speed_noise_on_steady_windows_only_leaves_a_clot_that_speeds_up_or_rests():
+    """``steady = 0.1``: a clot keeping its speed to s_t+1 is noised as before (the same draw);
+    one that speeds up by 13 % to s_t+1, or rests, keeps its true motion. Fails if the fraction
+    is ignored (every window noised) or turns the noise off everywhere."""
+    key = jax.random.key(0)
+    for speed, accel, shear, noised in ((0.05, 0.0, 0.01, True), (0.05, 0.01, 0.01, False),
+                                        (0.0, 0.0, 0.0, False)):
+        frames, nt, mask = ring_clot_window(speed, accel, shear=shear, frames=5)
+        out = add_speed_noise(key, frames, nt, mask, std=0.2, current=3, steady=0.1)
+        assert bool(jnp.any(out != frames)) == noised, (speed, accel, shear)
+        if noised:
+            np.testing.assert_array_equal(
+                out, add_speed_noise(key, frames, nt, mask, std=0.2, current=3))
+    # the window's last frame is s_t: no s_t+1 to compare with
+    with pytest.raises(ValueError, match="s_t\\+1"):
+        add_speed_noise(key, frames[:4], nt, mask, std=0.2, current=3, steady=0.1)
+    with pytest.raises(ValueError, match="steady fraction"):
+        add_speed_noise(key, frames, nt, mask, std=0.2, current=3, steady=-0.1)
+    with pytest.raises(ConfigError, match="--speed-noise-steady .* needs --speed-noise"):
+        TrainConfig(speed_noise_steady=0.1)
+    assert TrainConfig(speed_noise=0.3, speed_noise_steady=0.1).speed_noise_steady == 0.1
+    from thrombojax.cli import build_parser
+
+    args = build_parser().parse_args(["train", "--dataset", "d.h5", "--model", "mgn", "--out",
+                                      "o", "--speed-noise-steady", "0.1"])
+    assert args.speed_noise_steady == 0.1
+
+
 def _tiny_step():
     from thrombojax.models.registry import create_model, get_config
     from thrombojax.simulator.step import make_step
@@ -86,6 +114,14 @@ def test_the_training_loss_uses_the_speed_noise():
     losses = [float(batch_loss(step, params, STATS, batch, jax.random.key(1), train=True,
                                speed_noise=s)[0]) for s in (0.0, 0.0, 0.2)]
     assert losses[0] == losses[1] != losses[2]
+    # on steady windows only: clots that speed up by 29-40 % to s_t+1 keep their true motion
+    speeding = window_batch([ring_clot_window(v, 0.02, shear=0.01, seed=i)
+                             for i, v in enumerate(SPEEDS)])
+    clean, noisy, steady = (
+        float(batch_loss(step, params, STATS, speeding, jax.random.key(1), train=True,
+                         speed_noise=s, speed_noise_steady=f)[0])
+        for s, f in ((0.0, 0.0), (0.2, 0.0), (0.2, 0.1)))
+    assert clean == steady != noisy
 
 
 def _carry_after_training(speed_noise: float) -> float:

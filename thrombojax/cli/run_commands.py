@@ -85,6 +85,10 @@ def _add_train(sub) -> None:
                    "input motion scaled by 1 + N(0, this^2), one draw per window (s_t and the "
                    "target unchanged): the model is shown a clot that moves too fast or too "
                    "slow and the true next frame (default 0: off)")
+    p.add_argument("--speed-noise-steady", type=NN_FLOAT, help="with --speed-noise: noise only "
+                   "windows whose true clot keeps its speed to s_t+1 within this fraction; where "
+                   "it speeds up or slows down more (a start, an outlet) the model sees the true "
+                   "motion (default 0: every window)")
     p.add_argument("--direction-noise", type=NN_FLOAT, help="direction noise, radians: the "
                    "clot's input motion turned by one random rotation per window (angle vector "
                    "N(0, this^2) per axis; s_t and the target unchanged): the model is shown a "
@@ -235,13 +239,12 @@ def _run_train(args) -> int:
              "n_test", "tiny", "rollout_steps", "noise_gamma", "pushforward_steps",
              "curriculum_epochs", "frame", "wall_features", "history", "noise_walk",
              "stop_history_gradient", "noise_shared", "wall_noise", "wall_signed",
-             "wall_clot_mean", "history_noise", "speed_noise", "direction_noise", "swell_noise",
-             "stretch_noise", "time_scale", "clot_mean_weight", "wall_loss_weight",
-             "average_weights", "select_by",
-             "axis_features", "follow_axis", "lateral_hold", "outlet_features",
-             "shape_features", "clearance_features", "section_features", "centre_pull",
-             "centre_tolerance", "rest_edges",
-             "init_from", "init_which")
+             "wall_clot_mean", "history_noise", "speed_noise", "speed_noise_steady",
+             "direction_noise", "swell_noise", "stretch_noise", "time_scale", "clot_mean_weight",
+             "wall_loss_weight", "average_weights", "select_by", "axis_features", "follow_axis",
+             "lateral_hold", "outlet_features", "shape_features", "clearance_features",
+             "section_features", "centre_pull", "centre_tolerance", "rest_edges", "init_from",
+             "init_which")
     overrides = {k: getattr(args, k) for k in names if getattr(args, k) is not None}
     from thrombojax.train.recipes import DEFAULT_RECIPE, recipe
 

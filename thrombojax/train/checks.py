@@ -46,6 +46,7 @@ _RULES: dict[str, tuple[str, float, bool, bool]] = {
     "wall_noise": ("float", 0.0, True, False),
     "history_noise": ("float", 0.0, True, False),
     "speed_noise": ("float", 0.0, True, False),
+    "speed_noise_steady": ("float", 0.0, True, False),
     "direction_noise": ("float", 0.0, True, False),
     "swell_noise": ("float", 0.0, True, False),
     "stretch_noise": ("float", 0.0, True, False),
@@ -130,6 +131,9 @@ def check_train_values(cfg: Any) -> None:
     if getattr(cfg, "history_noise", 0.0) > 0 and getattr(cfg, "history", 1) < 2:
         raise ConfigError("--history-noise (history_noise) needs --history H >= 2 (it perturbs "
                           "the history's accelerations; with one previous frame there are none)")
+    if getattr(cfg, "speed_noise_steady", 0.0) > 0 and not getattr(cfg, "speed_noise", 0.0) > 0:
+        raise ConfigError("--speed-noise-steady (speed_noise_steady) needs --speed-noise S > 0 "
+                          "(it chooses the windows that noise is drawn for)")
     if not isinstance(cfg.model_config, dict):
         raise ConfigError(f"model_config must be a JSON object, got {cfg.model_config!r}")
 

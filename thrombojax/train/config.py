@@ -79,6 +79,10 @@ class TrainConfig:
             by ``1 + e``, ``e ~ N(0, speed_noise^2)`` per window, s_t and the target unchanged,
             so the model is shown a clot off its speed and the true next frame (0: off;
             :func:`thrombojax.train.noise.add_speed_noise`).
+        speed_noise_steady: with ``speed_noise``, a fraction: only windows whose true clot
+            centroid keeps its speed from s_t to s_{t+1} within this fraction are noised; where
+            the clot speeds up or slows down more (a start, an outlet) the model sees the true
+            motion and may carry it (0: every window).
         direction_noise: direction noise, radians: the clot's input motion turned by one
             rotation per window, angle vector ``N(0, direction_noise^2 I)``, s_t and the target
             unchanged, so the model is shown a clot coming in from off its path and the true
@@ -217,6 +221,7 @@ class TrainConfig:
     wall_noise: float = 0.0
     history_noise: float = 0.0
     speed_noise: float = 0.0
+    speed_noise_steady: float = 0.0
     direction_noise: float = 0.0
     swell_noise: float = 0.0
     stretch_noise: float = 0.0

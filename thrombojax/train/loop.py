@@ -293,6 +293,7 @@ def train(
                                              wall_noise=cfg.wall_noise * radius,
                                              history_noise=cfg.history_noise * radius,
                                              speed_noise=cfg.speed_noise,
+                                             speed_noise_steady=cfg.speed_noise_steady,
                                              direction_noise=cfg.direction_noise,
                                              swell_noise=cfg.swell_noise,
                                              stretch_noise=cfg.stretch_noise,

@@ -51,6 +51,12 @@ pull-back (``tests/test_speed_noise.py``), the ladder's MeshGraphNet does not (c
 yet its rollouts speed up about half as much, on BendVessel and on a longer vessel whose clot
 is 40 % faster than any training clot
 (``experiments/results/ladder_budget/bendvessel_speed/README.md``).
+With ``steady = F > 0`` the noise is drawn only for windows whose true clot keeps its speed:
+the clot centroid's speed from s_t to s_{t+1} within a fraction ``F`` of its speed from s_{t-1}
+to s_t. Where the true clot speeds up or slows down by more (a start, an outlet), the window
+keeps its true motion, so the model may learn to carry the speed it is shown there: how fast a
+clot leaves a vessel depends on how fast it is already leaving, which the vessel alone does
+not tell (``experiments/results/ladder_budget/bendvessel_exit/README.md``).
 
 Direction noise (:func:`add_direction_noise`): the clot's input motion is turned by one random
 rotation per window, angle vector ``w ~ N(0, std^2 I)`` (radians): every frame before s_t is
@@ -251,6 +257,7 @@ def add_speed_noise(
     *,
     std: float,
     current: int,
+    steady: float = 0.0,
 ) -> jax.Array:
     """Scale the clot's input motion by one random factor ``1 + e`` (module docstring).
 
@@ -261,6 +268,9 @@ def add_speed_noise(
         std: standard deviation of ``e``, a fraction of the motion (dimensionless; 0 returns
             ``frames`` unchanged).
         current: index of s_t in the window (the step's ``history``, >= 1).
+        steady: ``F >= 0``; when ``> 0``, the window is returned as given unless the true
+            clot centroid's speed from s_t to s_{t+1} is within a fraction ``F`` of its speed
+            from s_{t-1} to s_t (a clot at rest is not noised; the window must hold s_{t+1}).
     Returns:
         ``[W, n_nodes, 3]``: the clot nodes of frames ``0 .. current - 1`` at
         ``s_t - (1 + e) (s_t - s_k)``; s_t, the later frames and every other node as given.
@@ -268,8 +278,26 @@ def add_speed_noise(
     if noise_off(std, "speed noise"):
         return frames
     e = std * jax.random.normal(key, (), frames.dtype)
-    return _remap_motion(frames, node_type, mask, current, "speed noise",
-                         lambda motion: (1.0 + e) * motion)
+    if not steady >= 0.0:
+        raise ValueError(f"speed noise: the steady fraction must be >= 0, got {steady!r}")
+    if steady > 0.0 and frames.shape[0] <= current + 1:
+        raise ValueError(f"speed noise on steady windows needs s_t+1 in the window "
+                         f"({frames.shape[0]} frames, s_t at index {current})")
+    out = _remap_motion(frames, node_type, mask, current, "speed noise",
+                        lambda motion: (1.0 + e) * motion)
+    if steady > 0.0:  # the window as given, to the last bit, unless its clot keeps its speed
+        out = jnp.where(_keeps_speed(frames, node_type, mask, current, steady), out, frames)
+    return out
+
+
+def _keeps_speed(frames, node_type, mask, current, fraction):
+    """Whether the clot centroid's speed from s_t to s_{t+1} lies within ``fraction`` of its
+    speed from s_{t-1} to s_t (False for a clot at rest)."""
+    w = clot_mask(node_type, mask).astype(frames.dtype)[:, None]
+    centroid = (frames[current - 1:current + 2] * w).sum(axis=1) / jnp.maximum(w.sum(), 1.0)
+    before = jnp.linalg.norm(centroid[1] - centroid[0])
+    after = jnp.linalg.norm(centroid[2] - centroid[1])
+    return (before > 0) & (jnp.abs(after - before) <= fraction * before)
 
 
 def _remap_motion(frames, node_type, mask, current, what, remap):

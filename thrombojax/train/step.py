@@ -116,6 +116,7 @@ def batch_loss(
     wall_noise: float = 0.0,
     history_noise: float = 0.0,
     speed_noise: float = 0.0,
+    speed_noise_steady: float = 0.0,
     direction_noise: float = 0.0,
     swell_noise: float = 0.0,
     stretch_noise: float = 0.0,
@@ -146,6 +147,8 @@ def batch_loss(
             frames before s_{t-1} (:func:`thrombojax.train.noise.add_history_noise`; 0: off).
         speed_noise: standard deviation of the factor ``1 + e`` the clot's input motion is
             scaled by (:func:`thrombojax.train.noise.add_speed_noise`; 0: off).
+        speed_noise_steady: with ``speed_noise``, noise only the windows whose true clot keeps
+            its speed within this fraction (``add_speed_noise``'s ``steady``; 0: every window).
         direction_noise: standard deviation per axis (radians) of the rotation the clot's
             input motion is turned by (:func:`thrombojax.train.noise.add_direction_noise`;
             0: off).
@@ -181,6 +184,7 @@ def batch_loss(
                                 noise_gamma=noise_gamma, noise_walk=noise_walk,
                                 noise_shared=noise_shared, wall_noise=wall_noise,
                                 history_noise=history_noise, speed_noise=speed_noise,
+                                speed_noise_steady=speed_noise_steady,
                                 direction_noise=direction_noise, swell_noise=swell_noise,
                                 stretch_noise=stretch_noise, time_scale=time_scale)
 
@@ -220,8 +224,8 @@ def batch_loss(
 
 
 def _corrupt(key, frames, node_type, mask, *, current, noise_std, noise_gamma, noise_walk,
-             noise_shared, wall_noise, history_noise, speed_noise, direction_noise,
-             swell_noise, stretch_noise, time_scale):
+             noise_shared, wall_noise, history_noise, speed_noise, speed_noise_steady,
+             direction_noise, swell_noise, stretch_noise, time_scale):
     """One training window with its input noise (:mod:`thrombojax.train.noise`): the time
     scaling first from ``fold_in(key, 4)``, the speed and direction noise (on the clean motion)
     from ``fold_in(key, 3)`` and ``fold_in(key, 5)``, the swell noise from ``fold_in(key, 6)``,
@@ -233,7 +237,7 @@ def _corrupt(key, frames, node_type, mask, *, current, noise_std, noise_gamma, n
                                    factor=time_scale, current=current)
     if speed_noise > 0:
         frames = add_speed_noise(jax.random.fold_in(key, 3), frames, node_type, mask,
-                                 std=speed_noise, current=current)
+                                 std=speed_noise, current=current, steady=speed_noise_steady)
     if direction_noise > 0:
         frames = add_direction_noise(jax.random.fold_in(key, 5), frames, node_type, mask,
                                      std=direction_noise, current=current)
@@ -287,6 +291,7 @@ def make_train_step(
     wall_noise: float = 0.0,
     history_noise: float = 0.0,
     speed_noise: float = 0.0,
+    speed_noise_steady: float = 0.0,
     direction_noise: float = 0.0,
     swell_noise: float = 0.0,
     stretch_noise: float = 0.0,
@@ -306,7 +311,8 @@ def make_train_step(
         tx: the optimiser.
         stats: target statistics (closed over, constants of the compiled step).
         noise_std, noise_gamma, noise_walk, noise_shared, wall_noise, history_noise,
-            speed_noise, direction_noise, swell_noise, stretch_noise, time_scale: training
+            speed_noise, speed_noise_steady, direction_noise, swell_noise, stretch_noise,
+            time_scale: training
             noise and time
             scaling
             (:func:`batch_loss`).
@@ -332,6 +338,7 @@ def make_train_step(
                 noise_std=noise_std, noise_gamma=noise_gamma, noise_walk=noise_walk,
                 noise_shared=noise_shared, wall_noise=wall_noise,
                 history_noise=history_noise, speed_noise=speed_noise,
+                speed_noise_steady=speed_noise_steady,
                 direction_noise=direction_noise, swell_noise=swell_noise,
                 stretch_noise=stretch_noise, time_scale=time_scale, k=k,
                 pushforward=pushforward,
