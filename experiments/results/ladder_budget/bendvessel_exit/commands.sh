@@ -7,6 +7,13 @@ R90=/work/exp/s90  # the outlet recipe's seeds 0 and 1 of ../bendvessel_speed_no
 R=/work/exp/s94    # the new runs (checkpoints are not committed; config.json, metrics.jsonl and
                    # loss.png are, in training/)
 AUTO=0.2072737216949463  # the fitted coherence tolerance (r), the default of thrombojax rollout
+# rows LABEL RUNPREFIX: seeds 0, 1 (RUNPREFIX_s0, _s1) and their ensemble (e2), alone and at auto
+rows() {
+    for m in s0 s1 e2; do
+        case $m in e2) RUN=$2_s0+$2_s1 ;; *) RUN=$2_$m ;; esac
+        echo -n " $1_${m}_alone=$RUN $1_${m}_auto=$RUN:guards,tolerance_r=$AUTO"
+    done
+}
 thrombojax generate bendvessel --out data/bendvessel.h5      # fingerprint 8733d333...
 
 # 1. The true clot's exit, per simulation (no model)
@@ -26,11 +33,7 @@ for s in 0 1; do
         --init-from $R90/bv_outlet_s$s --init-checkpoint last --rollout-steps 4 --epochs 3 \
         --lr 2e-5 --warmup-epochs 0.25 --select-by last --out $R/ft/k4_s$s &
 done; wait
-FT_ROWS=""
-for m in s0 s1 e2; do
-    case $m in e2) RUN=$R/ft/k4_s0+$R/ft/k4_s1 ;; *) RUN=$R/ft/k4_$m ;; esac
-    FT_ROWS="$FT_ROWS ftk4_${m}_alone=$RUN ftk4_${m}_auto=$RUN:guards,tolerance_r=$AUTO"
-done
+FT_ROWS=$(rows ftk4 $R/ft/k4)
 
 # 4. The outlet recipe with the speed noise on steady windows only, seeds 0 and 1 side by side
 # (--speed-noise-steady was then at its first version, see README.md)
@@ -39,16 +42,8 @@ for s in 0 1; do
         --dataset data/bendvessel.h5 --seed $s --outlet-features 2 --speed-noise-steady 0.1 \
         --out $R/gate/bv_s$s &
 done; wait
-ST_ROWS=""
-for m in s0 s1 e2; do
-    case $m in e2) RUN=$R/gate/bv_s0+$R/gate/bv_s1 ;; *) RUN=$R/gate/bv_$m ;; esac
-    ST_ROWS="$ST_ROWS steady_${m}_alone=$RUN steady_${m}_auto=$RUN:guards,tolerance_r=$AUTO"
-done
-OUTLET_ROWS=""
-for m in s0 s1 e2; do
-    case $m in e2) RUN=$E2 ;; *) RUN=$R90/bv_outlet_$m ;; esac
-    OUTLET_ROWS="$OUTLET_ROWS outlet_${m}_alone=$RUN outlet_${m}_auto=$RUN:guards,tolerance_r=$AUTO"
-done
+ST_ROWS=$(rows steady $R/gate/bv)
+OUTLET_ROWS=$(rows outlet $R90/bv_outlet)
 # The rows were computed in /work/exp/s94 (several invocations, OUT there) and copied here;
 # cross_eval.py reuses every OUT/<label>.json, so these two commands rebuild the tables:
 python $CE $OUT/heldout data/bendvessel.h5 bendvessel_005,bendvessel_012,bendvessel_019 \
