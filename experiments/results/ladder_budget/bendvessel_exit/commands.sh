@@ -18,6 +18,7 @@ thrombojax generate bendvessel --out data/bendvessel.h5      # fingerprint 8733d
 
 # 1. The true clot's exit, per simulation (no model)
 python $OUT/exit_truth.py data/bendvessel.h5 --held-out bendvessel_005,bendvessel_012,bendvessel_019 \
+    --validation bendvessel_009 --steady 0.1 \
     --out $OUT/exit_truth.md
 
 # 2. Each guard alone, and the containment margin, on the outlet ensemble (seeds 0 + 1). The

@@ -20,11 +20,15 @@ simulation this prints (vessel radii, from the clot centroid of the dataset's fr
 
 Then, for the simulations named in ``--held-out``: how far each one's ``extra`` lies from the
 mean of the other simulations', the final error along the track of a step that knew everything
-but which simulation it is in. No model is run; the table is written atomically and replaced
-only with ``--force``. From the repository root::
+but which simulation it is in. With ``--steady F``: the share of the training windows (every
+``s_{t-1}, s_t, s_{t+1}`` of the simulations neither held out nor in ``--validation``) that
+``thrombojax train --speed-noise-steady F`` leaves un-noised, counted by running
+:func:`thrombojax.train.noise.add_speed_noise` on each. No model is run; the table is written
+atomically and replaced only with ``--force``. From the repository root::
 
     python experiments/results/ladder_budget/bendvessel_exit/exit_truth.py data/bendvessel.h5 \\
-        --held-out bendvessel_005,bendvessel_012,bendvessel_019 --out exit_truth.md
+        --held-out bendvessel_005,bendvessel_012,bendvessel_019 --validation bendvessel_009 \\
+        --steady 0.1 --out exit_truth.md
 """
 
 from __future__ import annotations
@@ -79,18 +83,44 @@ def measure(ds, name: str, radius: float) -> dict:
                for key in ("drive_ratio", "friction", "flow_speed")}}
 
 
+def unnoised_share(ds, names: list[str], fraction: float) -> tuple[int, int]:
+    """(windows ``add_speed_noise(..., steady=fraction)`` returns as given, windows) over the
+    three-frame windows of ``names``."""
+    import jax
+
+    from thrombojax.train.noise import add_speed_noise
+
+    kept = total = 0
+    for name in names:
+        pos, nt = ds.positions(name), ds.node_type(name)
+        mask = np.ones(len(nt), bool)
+        noise = jax.jit(lambda w, k, nt=nt, mask=mask: add_speed_noise(
+            k, w, nt, mask, std=0.3, current=1, steady=fraction))
+        for t in range(1, len(pos) - 1):
+            window = pos[t - 1:t + 2]
+            out = np.asarray(noise(window, jax.random.key(t)))
+            kept += int(np.array_equal(out, window))
+            total += 1
+    return kept, total
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("data", type=pathlib.Path, help="the BendVessel dataset (.h5)")
     ap.add_argument("--held-out", default="", help="comma-separated simulations to score "
                     "against the mean of the others")
+    ap.add_argument("--validation", default="", help="comma-separated validation simulations "
+                    "(left out of the --steady count with the held-out ones)")
+    ap.add_argument("--steady", type=float, default=0.0, help="also count the training "
+                    "windows --speed-noise-steady F leaves un-noised (0: skip)")
     ap.add_argument("--out", type=pathlib.Path, required=True)
     ap.add_argument("--force", action="store_true", help="replace an existing --out")
     args = ap.parse_args()
     check_targets([args.out], force=args.force)
     ds = open_dataset(args.data)
     held = [s for s in args.held_out.split(",") if s]
-    missing = [s for s in held if s not in ds]
+    validation = [s for s in args.validation.split(",") if s]
+    missing = [s for s in held + validation if s not in ds]
     if missing:
         raise ConfigError(f"{args.data}: no simulation {', '.join(missing)}")
     radius = float(vessel_radius(ds))
@@ -123,6 +153,12 @@ def main() -> None:
                   for r in rows if r["name"] in held]
         gaps = np.array([r["extra"] - others.mean() for r in rows if r["name"] in held])
         lines.append(f"- mean |gap| {np.abs(gaps).mean():.2f} r")
+    if args.steady > 0:
+        training = [n for n in ds.names if n not in held + validation]
+        kept, total = unnoised_share(ds, training, args.steady)
+        lines.append(f"\n`--speed-noise-steady {args.steady:g}` leaves {kept} of the {total} "
+                     f"training windows un-noised ({100 * kept / total:.1f} %; the {len(training)}"
+                     f" simulations neither held out nor validation, clean frames).")
     stamp = datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds")
     lines.append(f"\nFrom the dataset's frames (no model run), vessel radius {radius:g}. Command: "
                  f"python {' '.join(sys.argv)}; {stamp}; Python {platform.python_version()}, "
