@@ -82,13 +82,10 @@ def _add_train(sub) -> None:
                    "the model does not carry a clot-wide acceleration over from its history, "
                    "which in a rollout speeds the clot up step after step (default 0: off)")
     p.add_argument("--speed-noise", type=NN_FLOAT, help="speed noise, a fraction: the clot's "
-                   "input motion scaled by 1 + N(0, this^2), one draw per window (s_t and the "
-                   "target unchanged): the model is shown a clot that moves too fast or too "
-                   "slow and the true next frame (default 0: off)")
+                   "input motion scaled by 1 + N(0, this^2) per window (s_t and the target "
+                   "unchanged): the model sees a clot too fast or too slow (default 0: off)")
     p.add_argument("--speed-noise-steady", type=NN_FLOAT, help="with --speed-noise: noise only "
-                   "windows whose true clot keeps its speed to s_t+1 within this fraction; where "
-                   "it speeds up or slows down more (a start, an outlet) the model sees the true "
-                   "motion (default 0: every window)")
+                   "windows whose clot keeps its speed to s_t+1 within this fraction (0: all)")
     p.add_argument("--direction-noise", type=NN_FLOAT, help="direction noise, radians: the "
                    "clot's input motion turned by one random rotation per window (angle vector "
                    "N(0, this^2) per axis; s_t and the target unchanged): the model is shown a "

@@ -78,11 +78,8 @@ class TrainConfig:
         speed_noise: speed noise, a fraction (dimensionless): the clot's input motion scaled
             by ``1 + e``, ``e ~ N(0, speed_noise^2)`` per window, s_t and the target unchanged,
             so the model is shown a clot off its speed and the true next frame (0: off;
-            :func:`thrombojax.train.noise.add_speed_noise`).
-        speed_noise_steady: with ``speed_noise``, a fraction: only windows whose true clot
-            centroid keeps its speed from s_t to s_{t+1} within this fraction are noised; where
-            the clot speeds up or slows down more (a start, an outlet) the model sees the true
-            motion and may carry it (0: every window).
+            :func:`thrombojax.train.noise.add_speed_noise`). ``speed_noise_steady``: noise only
+            the windows whose true clot keeps its speed to s_{t+1} within this fraction (0: all).
         direction_noise: direction noise, radians: the clot's input motion turned by one
             rotation per window, angle vector ``N(0, direction_noise^2 I)``, s_t and the target
             unchanged, so the model is shown a clot coming in from off its path and the true

@@ -287,8 +287,7 @@ def train(
         k = rollout_steps_at(epoch, cfg.rollout_steps, cfg.curriculum_epochs)
         if k not in train_steps:  # one compilation per k of the curriculum
             train_steps[k] = make_train_step(step_fn, tx, stats, noise_std=noise_std,
-                                             noise_gamma=cfg.noise_gamma,
-                                             noise_walk=cfg.noise_walk,
+                                             noise_gamma=cfg.noise_gamma, noise_walk=cfg.noise_walk,
                                              noise_shared=cfg.noise_shared,
                                              wall_noise=cfg.wall_noise * radius,
                                              history_noise=cfg.history_noise * radius,
