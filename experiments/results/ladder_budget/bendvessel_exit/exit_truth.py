@@ -35,20 +35,26 @@ from __future__ import annotations
 
 import argparse
 import datetime
+import functools
 import os
 import pathlib
 import platform
 import sys
 
+import jax
 import numpy as np
 
 from thrombojax.data.radius import vessel_radius
 from thrombojax.errors import ConfigError
+from thrombojax.eval.metrics import clot_centroids
 from thrombojax.io.hdf5 import open_dataset
 from thrombojax.io.outputs import atomic_write_text, check_targets
+from thrombojax.train.noise import add_speed_noise
 from thrombojax.types import clot_mask
 
-EXIT_SPEEDUP = 1.15
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "bendvessel_shapes" / "exit"))
+from exit_split import EXIT_SPEEDUP  # noqa: E402
+
 STEADY_FRAMES = range(10, 30)
 
 
@@ -66,7 +72,7 @@ def measure(ds, name: str, radius: float) -> dict:
     """The exit's numbers of one simulation (module docstring), in vessel radii."""
     pos = ds.positions(name)
     clot = clot_mask(ds.node_type(name))
-    centroid = pos[:, clot].mean(axis=1) / radius
+    centroid = clot_centroids(pos, clot) / radius
     speed = np.linalg.norm(np.diff(centroid, axis=0), axis=1)
     steady = float(np.median(speed))
     k = exit_of(speed)
@@ -83,22 +89,23 @@ def measure(ds, name: str, radius: float) -> dict:
                for key in ("drive_ratio", "friction", "flow_speed")}}
 
 
+@functools.partial(jax.jit, static_argnames="fraction")
+def _noised(window, key, node_type, mask, *, fraction: float):
+    """One three-frame window through ``add_speed_noise(..., steady=fraction)`` (compiled once
+    per node count)."""
+    return add_speed_noise(key, window, node_type, mask, std=0.3, current=1, steady=fraction)
+
+
 def unnoised_share(ds, names: list[str], fraction: float) -> tuple[int, int]:
     """(windows ``add_speed_noise(..., steady=fraction)`` returns as given, windows) over the
     three-frame windows of ``names``."""
-    import jax
-
-    from thrombojax.train.noise import add_speed_noise
-
     kept = total = 0
     for name in names:
         pos, nt = ds.positions(name), ds.node_type(name)
         mask = np.ones(len(nt), bool)
-        noise = jax.jit(lambda w, k, nt=nt, mask=mask: add_speed_noise(
-            k, w, nt, mask, std=0.3, current=1, steady=fraction))
         for t in range(1, len(pos) - 1):
             window = pos[t - 1:t + 2]
-            out = np.asarray(noise(window, jax.random.key(t)))
+            out = np.asarray(_noised(window, jax.random.key(t), nt, mask, fraction=fraction))
             kept += int(np.array_equal(out, window))
             total += 1
     return kept, total
