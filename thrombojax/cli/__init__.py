@@ -3,7 +3,8 @@
 Errors that thrombojax raises on purpose (:class:`thrombojax.errors.ThrombojaxError`) and
 missing files are printed as one line and exit with status 2, never as a traceback. The
 subcommands live in :mod:`.data_commands` (info, import, generate, export),
-:mod:`.run_commands` (train, evaluate, rollout), :mod:`.bench_commands` (bench),
+:mod:`.train_commands` (train), :mod:`.run_commands` (evaluate, rollout),
+:mod:`.bench_commands` (bench),
 :mod:`.ensemble_commands` (ensemble) and :mod:`.experiment_commands` (experiment list / run);
 library imports happen inside each command so ``thrombojax --help`` stays fast.
 :mod:`.allocator` runs the command under tcmalloc.
@@ -23,13 +24,15 @@ from thrombojax.cli import (
     ensemble_commands,
     experiment_commands,
     run_commands,
+    train_commands,
 )
 from thrombojax.errors import ThrombojaxError
 
 __all__ = ["main", "build_parser"]
 
-_REGISTRARS = [*data_commands.REGISTRARS, *run_commands.REGISTRARS, *bench_commands.REGISTRARS,
-               *ensemble_commands.REGISTRARS, *experiment_commands.REGISTRARS]
+_REGISTRARS = [*data_commands.REGISTRARS, *train_commands.REGISTRARS, *run_commands.REGISTRARS,
+               *bench_commands.REGISTRARS, *ensemble_commands.REGISTRARS,
+               *experiment_commands.REGISTRARS]
 
 
 class _Parser(argparse.ArgumentParser):

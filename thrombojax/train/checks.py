@@ -53,6 +53,8 @@ _RULES: dict[str, tuple[str, float, bool, bool]] = {
     "time_scale": ("float", 1.0, True, False),
     "clot_mean_weight": ("float", 0.0, True, False),
     "wall_loss_weight": ("float", 0.0, True, False),
+    "speedup_weight": ("float", 0.0, True, False),
+    "speedup_fraction": ("float", 0.0, True, False),
     "average_weights": ("float", 0.0, True, False),
     "seed": ("int", 0, True, False),
     "split_seed": ("int", 0, True, False),

@@ -21,11 +21,11 @@ import dataclasses
 import json
 import math
 import pathlib
-import re
 from typing import Any
 
 from thrombojax.errors import ConfigError
 from thrombojax.graph.frame import FRAMES
+from thrombojax.train.angles import parse_angle
 from thrombojax.train.checks import check_train_values
 
 __all__ = ["TrainConfig", "RunConfig", "SELECT_BY", "CHECKPOINTS", "parse_angle",
@@ -109,6 +109,10 @@ class TrainConfig:
             (:mod:`thrombojax.train.wall_loss`): the model pays more for an outward error than
             for an inward one (what it did to rollouts: ``docs/rollouts.md``). ``train_loss``
             includes it, ``val_loss`` does not (0: off).
+        speedup_weight: extra weight (>= 0) in the training loss of the windows whose true
+            clot speeds up: faster from s_t to s_{t+1} than ``1 + speedup_fraction`` (>= 0,
+            default 0.1) times its speed from s_{t-1} to s_t, as where it leaves the vessel
+            (:mod:`thrombojax.train.speedup`; 0: off). ``val_loss`` stays unweighted.
         average_weights: weight averaging, a share in [0, 1] of the training's optimiser
             steps: the model is the plain mean of the weights after each of the last
             ``round(share x steps)`` steps (stochastic weight averaging, Izmailov et al. 2018,
@@ -225,6 +229,8 @@ class TrainConfig:
     time_scale: float = 1.0
     clot_mean_weight: float = 0.0
     wall_loss_weight: float = 0.0
+    speedup_weight: float = 0.0
+    speedup_fraction: float = 0.1
     average_weights: float = 0.0
     seed: int = 0
     split_seed: int = 0
@@ -316,32 +322,6 @@ class TrainConfig:
         if isinstance(values.get("max_rotation"), str):
             values["max_rotation"] = parse_angle(values["max_rotation"])
         return cls(**values)
-
-
-_ANGLE = re.compile(r"^\s*(?:(?P<k>[0-9.eE+-]+)\s*\*?\s*)?pi\s*(?:/\s*(?P<d>[0-9.eE+-]+))?\s*$")
-
-
-def parse_angle(text: str | float) -> float:
-    """Parse an angle in radians: ``"3.14159"``, ``"pi"``, ``"pi/2"``, ``"0.5pi"``, ``"90deg"``.
-
-    Returns:
-        The angle in radians; a malformed string raises :class:`ConfigError`.
-    """
-    if isinstance(text, int | float):
-        return float(text)
-    s = str(text).strip().lower()
-    try:
-        if s.endswith("deg"):
-            return math.radians(float(s[:-3]))
-        match = _ANGLE.match(s)
-        if match:
-            k = float(match.group("k")) if match.group("k") else 1.0
-            d = float(match.group("d")) if match.group("d") else 1.0
-            return k * math.pi / d
-        return float(s)
-    except ValueError:
-        pass
-    raise ConfigError(f"cannot read angle {text!r}: use radians (1.57), pi, pi/2, 0.5pi or 90deg")
 
 
 @dataclasses.dataclass(frozen=True)

@@ -83,6 +83,7 @@ from thrombojax.train.step import (
     replicate,
     shard_batch,
 )
+from thrombojax.train.step_options import train_step_options
 from thrombojax.train.validation import (
     end_epoch_record,
     epoch_score,
@@ -280,28 +281,13 @@ def train(
         radius=cfg.bary_radius or model_cfg.radius, max_neighbors=cfg.bary_max_neighbors,
     )
     augment = jax.jit(functools.partial(augment_batch, config=aug_cfg))
-    noise_std = cfg.noise_std * radius
     train_steps: dict[int, Callable] = {}
+    step_options = train_step_options(cfg, radius, total_steps)
 
     def train_step_at(epoch: int) -> Callable:
         k = rollout_steps_at(epoch, cfg.rollout_steps, cfg.curriculum_epochs)
         if k not in train_steps:  # one compilation per k of the curriculum
-            train_steps[k] = make_train_step(step_fn, tx, stats, noise_std=noise_std,
-                                             noise_gamma=cfg.noise_gamma, noise_walk=cfg.noise_walk,
-                                             noise_shared=cfg.noise_shared,
-                                             wall_noise=cfg.wall_noise * radius,
-                                             history_noise=cfg.history_noise * radius,
-                                             speed_noise=cfg.speed_noise,
-                                             speed_noise_steady=cfg.speed_noise_steady,
-                                             direction_noise=cfg.direction_noise,
-                                             swell_noise=cfg.swell_noise,
-                                             stretch_noise=cfg.stretch_noise,
-                                             time_scale=cfg.time_scale, k=k,
-                                             pushforward=cfg.pushforward_steps,
-                                             clot_mean_weight=cfg.clot_mean_weight,
-                                             wall_loss_weight=cfg.wall_loss_weight,
-                                             average_from=total_steps - round(
-                                                 cfg.average_weights * total_steps))
+            train_steps[k] = make_train_step(step_fn, tx, stats, k=k, **step_options)
         return train_steps[k]
 
     eval_step = make_eval_step(step_fn, stats, k=cfg.rollout_steps)

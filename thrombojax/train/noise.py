@@ -90,6 +90,7 @@ import jax
 import jax.numpy as jnp
 
 from thrombojax.graph.wall_nodes import local_wall_plane
+from thrombojax.train.speedup import clot_speeds
 from thrombojax.types import clot_mask
 
 __all__ = ["add_training_noise", "add_wall_noise", "add_history_noise", "add_speed_noise",
@@ -293,10 +294,7 @@ def add_speed_noise(
 def _keeps_speed(frames, node_type, mask, current, fraction):
     """Whether the clot centroid's speed from s_t to s_{t+1} lies within ``fraction`` of its
     speed from s_{t-1} to s_t (False for a clot at rest)."""
-    w = clot_mask(node_type, mask).astype(frames.dtype)[:, None]
-    centroid = (frames[current - 1:current + 2] * w).sum(axis=1) / jnp.maximum(w.sum(), 1.0)
-    before = jnp.linalg.norm(centroid[1] - centroid[0])
-    after = jnp.linalg.norm(centroid[2] - centroid[1])
+    before, after = clot_speeds(frames, node_type, mask, current)
     return (before > 0) & (jnp.abs(after - before) <= fraction * before)
 
 

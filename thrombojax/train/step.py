@@ -46,16 +46,9 @@ from thrombojax.models.registry import Surrogate
 from thrombojax.simulator.flat import FlatStep, flat_batch_ok
 from thrombojax.simulator.step import LearnedStep, make_step
 from thrombojax.train.averaging import average_weights
+from thrombojax.train.corrupt import corrupt_window
 from thrombojax.train.loss import flat_window_loss_terms, window_loss_terms
-from thrombojax.train.noise import (
-    add_direction_noise,
-    add_history_noise,
-    add_speed_noise,
-    add_training_noise,
-    add_wall_noise,
-    time_scale_window,
-)
-from thrombojax.train.shape_noise import add_stretch_noise, add_swell_noise
+from thrombojax.train.speedup import speedup_window_weight
 from thrombojax.train.state import TrainState
 from thrombojax.types import TargetStats
 from thrombojax.xla_options import jit as xla_jit
@@ -126,6 +119,8 @@ def batch_loss(
     flat_batch: bool = False,
     clot_mean_weight: float = 0.0,
     wall_loss_weight: float = 0.0,
+    speedup_weight: float = 0.0,
+    speedup_fraction: float = 0.1,
 ) -> tuple[jax.Array, dict[str, jax.Array]]:
     """Loss of a batch pooled over its clot nodes, and metrics.
 
@@ -171,16 +166,21 @@ def batch_loss(
         wall_loss_weight: weight ``w`` of the wall term: the loss adds ``w`` times the mean over
             the clot nodes of the squared excess of the predictions through the wall beyond the
             truth's (:mod:`thrombojax.train.wall_loss`; 0: off, no wall search compiled).
+        speedup_weight, speedup_fraction: windows whose clean clot speeds up by more than
+            ``speedup_fraction`` from its speed into s_t weigh ``1 + speedup_weight`` in every
+            term of the loss (:func:`thrombojax.train.speedup.speedup_window_weight`; 0: off,
+            nothing compiled). ``mse`` and ``nodes`` stay unweighted.
     Returns:
         ``(loss, metrics)``: ``loss`` is the normalised-acceleration MSE (plus the weighted
-        clot-wide and wall terms); ``metrics`` holds ``loss``, ``mse`` (the study's metric,
-        scaled coordinates) and ``nodes``.
+        clot-wide and wall terms), a mean over the clot nodes weighted by their window's
+        weight; ``metrics`` holds ``loss``, ``mse`` (the study's metric, scaled coordinates)
+        and ``nodes``.
     """
     step = _as_step(model)
     size = batch.mask.shape[0]
     keys = jax.random.split(rng, size) if rng is not None else None
 
-    corrupt = functools.partial(_corrupt, current=step.history, noise_std=noise_std,
+    corrupt = functools.partial(corrupt_window, current=step.history, noise_std=noise_std,
                                 noise_gamma=noise_gamma, noise_walk=noise_walk,
                                 noise_shared=noise_shared, wall_noise=wall_noise,
                                 history_noise=history_noise, speed_noise=speed_noise,
@@ -214,50 +214,24 @@ def batch_loss(
         terms = jax.vmap(one)(batch.frames, batch.node_type, batch.mask, keys)
     count = terms["count"].sum()
     denom = jnp.maximum(count, 1.0)
-    loss = terms["loss_sum"].sum() / denom
+    total, loss_denom = jnp.sum, denom
+    if speedup_weight:  # static: nothing compiled when off
+        clean = batch.frames[:, 1:] if step.rest_edges else batch.frames
+        weights = jax.vmap(functools.partial(
+            speedup_window_weight, current=step.history, weight=speedup_weight,
+            fraction=speedup_fraction))(clean, batch.node_type, batch.mask)
+        loss_denom = jnp.maximum((weights * terms["count"]).sum(), 1.0)
+
+        def total(x):
+            return (weights * x).sum()
+
+    loss = total(terms["loss_sum"]) / loss_denom
     if clot_mean_weight:
-        loss = loss + clot_mean_weight * terms["clot_mean_sum"].sum() / denom
+        loss = loss + clot_mean_weight * total(terms["clot_mean_sum"]) / loss_denom
     if wall_term:
-        loss = loss + wall_loss_weight * terms["wall_sum"].sum() / denom
+        loss = loss + wall_loss_weight * total(terms["wall_sum"]) / loss_denom
     metrics = {"loss": loss, "mse": terms["mse_sum"].sum() / denom, "nodes": count}
     return loss, metrics
-
-
-def _corrupt(key, frames, node_type, mask, *, current, noise_std, noise_gamma, noise_walk,
-             noise_shared, wall_noise, history_noise, speed_noise, speed_noise_steady,
-             direction_noise, swell_noise, stretch_noise, time_scale):
-    """One training window with its input noise (:mod:`thrombojax.train.noise`): the time
-    scaling first from ``fold_in(key, 4)``, the speed and direction noise (on the clean motion)
-    from ``fold_in(key, 3)`` and ``fold_in(key, 5)``, the swell noise from ``fold_in(key, 6)``,
-    then the Gaussian or random-walk
-    noise from ``key``, the wall noise from ``fold_in(key, 1)`` and the history noise from
-    ``fold_in(key, 2)`` (so turning any on leaves the other draws of a seed unchanged)."""
-    if time_scale != 1.0:
-        frames = time_scale_window(jax.random.fold_in(key, 4), frames, node_type, mask,
-                                   factor=time_scale, current=current)
-    if speed_noise > 0:
-        frames = add_speed_noise(jax.random.fold_in(key, 3), frames, node_type, mask,
-                                 std=speed_noise, current=current, steady=speed_noise_steady)
-    if direction_noise > 0:
-        frames = add_direction_noise(jax.random.fold_in(key, 5), frames, node_type, mask,
-                                     std=direction_noise, current=current)
-    if swell_noise > 0:
-        frames = add_swell_noise(jax.random.fold_in(key, 6), frames, node_type, mask,
-                                 std=swell_noise, current=current)
-    if stretch_noise > 0:
-        frames = add_stretch_noise(jax.random.fold_in(key, 7), frames, node_type, mask,
-                                   std=stretch_noise, current=current)
-    if noise_std > 0:
-        frames = add_training_noise(key, frames, node_type, mask, std=noise_std,
-                                    gamma=noise_gamma, current=current, walk=noise_walk,
-                                    shared=noise_shared)
-    if wall_noise > 0:
-        frames = add_wall_noise(jax.random.fold_in(key, 1), frames, node_type, mask,
-                                std=wall_noise, current=current)
-    if history_noise > 0:
-        frames = add_history_noise(jax.random.fold_in(key, 2), frames, node_type, mask,
-                                   std=history_noise, current=current)
-    return frames
 
 
 def _flat_terms(step, params, stats, batch, keys, *, train, corrupt, k, pushforward,
@@ -302,6 +276,8 @@ def make_train_step(
     flat_batch: bool = False,
     clot_mean_weight: float = 0.0,
     wall_loss_weight: float = 0.0,
+    speedup_weight: float = 0.0,
+    speedup_fraction: float = 0.1,
     average_from: int | None = None,
 ) -> Callable[[TrainState, Any, jax.Array], tuple[TrainState, dict]]:
     """Build the jitted ``train_step(state, batch, rng) -> (state, metrics)``.
@@ -322,6 +298,8 @@ def make_train_step(
         flat_batch: the batch as one flat graph where the model allows it (:func:`batch_loss`).
         clot_mean_weight: extra weight of the clot-wide error in the loss (:func:`batch_loss`).
         wall_loss_weight: weight of the wall term in the loss (:func:`batch_loss`).
+        speedup_weight, speedup_fraction: the extra loss weight of windows whose clot speeds
+            up (:func:`batch_loss`).
         average_from: with a state that carries an ``average`` (weight averaging), the number
             of steps done before the first averaged one: until then the average follows the
             weights, from then on it is their running mean (:func:`average_weights`).
@@ -343,7 +321,8 @@ def make_train_step(
                 stretch_noise=stretch_noise, time_scale=time_scale, k=k,
                 pushforward=pushforward,
                 flat_batch=flat_batch, clot_mean_weight=clot_mean_weight,
-                wall_loss_weight=wall_loss_weight,
+                wall_loss_weight=wall_loss_weight, speedup_weight=speedup_weight,
+                speedup_fraction=speedup_fraction,
             )
 
         (_, metrics), grads = jax.value_and_grad(loss_fn, has_aux=True)(state.params)
