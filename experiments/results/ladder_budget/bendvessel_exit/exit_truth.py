@@ -111,6 +111,14 @@ def unnoised_share(ds, names: list[str], fraction: float) -> tuple[int, int]:
     return kept, total
 
 
+def provenance(radius: float) -> str:
+    """The table's last line: no model, the vessel radius, the command, date, versions, load."""
+    stamp = datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds")
+    return (f"From the dataset's frames (no model run), vessel radius {radius:g}. Command: "
+            f"python {' '.join(sys.argv)}; {stamp}; Python {platform.python_version()}, "
+            f"jax {jax.__version__}, numpy {np.__version__}; load {os.getloadavg()[0]:.1f}.")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("data", type=pathlib.Path, help="the BendVessel dataset (.h5)")
@@ -166,10 +174,7 @@ def main() -> None:
         lines.append(f"\n`--speed-noise-steady {args.steady:g}` leaves {kept} of the {total} "
                      f"training windows un-noised ({100 * kept / total:.1f} %; the {len(training)}"
                      f" simulations neither held out nor validation, clean frames).")
-    stamp = datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds")
-    lines.append(f"\nFrom the dataset's frames (no model run), vessel radius {radius:g}. Command: "
-                 f"python {' '.join(sys.argv)}; {stamp}; Python {platform.python_version()}, "
-                 f"numpy {np.__version__}; load {os.getloadavg()[0]:.1f}.")
+    lines.append("\n" + provenance(radius))
     atomic_write_text(args.out, "\n".join(lines) + "\n")
     print("\n".join(lines))
 

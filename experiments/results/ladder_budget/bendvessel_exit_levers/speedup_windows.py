@@ -1,0 +1,93 @@
+"""Which BendVessel training windows ``thrombojax train --speedup-weight W --speedup-fraction F``
+weighs up, and where in the simulation they lie.
+
+For every ``s_{t-1}, s_t, s_{t+1}`` window of the training simulations (neither ``--held-out``
+nor ``--validation``), :func:`thrombojax.train.speedup.speedup_window_weight` (the library's own
+test, run on the clean frames) says whether the window weighs ``1 + W``. Each weighted window is
+counted as the start (``t`` before the first steady frame of ``../bendvessel_exit/exit_truth.py``)
+or the exit (from the exit's first frame step on, as ``exit_truth.exit_of`` finds it), else
+elsewhere; with ``W``, the share of the loss those windows carry (clot nodes are the same in
+every window of a simulation, so windows count alike). No model is run; the table is written
+atomically and replaced only with ``--force``. From the repository root::
+
+    python experiments/results/ladder_budget/bendvessel_exit_levers/speedup_windows.py \\
+        data/bendvessel.h5 --held-out bendvessel_005,bendvessel_012,bendvessel_019 \\
+        --validation bendvessel_009 --weight 3 --fraction 0.1 --out speedup_windows.md
+"""
+
+from __future__ import annotations
+
+import argparse
+import pathlib
+import sys
+
+import jax
+import numpy as np
+
+from thrombojax.data.radius import vessel_radius
+from thrombojax.errors import ConfigError
+from thrombojax.eval.metrics import clot_centroids
+from thrombojax.io.hdf5 import open_dataset
+from thrombojax.io.outputs import atomic_write_text, check_targets
+from thrombojax.train.speedup import speedup_window_weight
+from thrombojax.types import clot_mask
+
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "bendvessel_exit"))
+from exit_truth import STEADY_FRAMES, exit_of, provenance  # noqa: E402
+
+_weight = jax.jit(speedup_window_weight, static_argnames=("current", "weight", "fraction"))
+
+
+def count(ds, name: str, radius: float, fraction: float) -> dict:
+    """The weighted windows of one simulation: their ``t`` and where they lie."""
+    pos, nt = ds.positions(name), ds.node_type(name)
+    mask = np.ones(len(nt), bool)
+    speed = np.linalg.norm(np.diff(clot_centroids(pos, clot_mask(nt)) / radius, axis=0), axis=1)
+    k = exit_of(speed)
+    ts = [t for t in range(1, len(pos) - 1)
+          if float(_weight(pos[t - 1:t + 2], nt, mask, current=1, weight=1.0,
+                           fraction=fraction)) > 1.0]
+    return {"name": name, "windows": len(pos) - 2, "ts": ts, "exit_from": k,
+            "start": sum(t < STEADY_FRAMES.start for t in ts), "exit": sum(t >= k for t in ts)}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("data", type=pathlib.Path, help="the BendVessel dataset (.h5)")
+    ap.add_argument("--held-out", default="", help="comma-separated held-out simulations")
+    ap.add_argument("--validation", default="", help="comma-separated validation simulations")
+    ap.add_argument("--weight", type=float, required=True, help="--speedup-weight W")
+    ap.add_argument("--fraction", type=float, default=0.1, help="--speedup-fraction F")
+    ap.add_argument("--out", type=pathlib.Path, required=True)
+    ap.add_argument("--force", action="store_true", help="replace an existing --out")
+    args = ap.parse_args()
+    check_targets([args.out], force=args.force)
+    ds = open_dataset(args.data)
+    left_out = [s for s in (args.held_out + "," + args.validation).split(",") if s]
+    missing = [s for s in left_out if s not in ds]
+    if missing:
+        raise ConfigError(f"{args.data}: no simulation {', '.join(missing)}")
+    radius = float(vessel_radius(ds))
+    rows = [count(ds, n, radius, args.fraction) for n in ds.names if n not in left_out]
+    lines = ["| simulation | weighted windows (t) | exit from frame step | start | exit | "
+             "elsewhere |", "|---|---|---|---|---|---|"]
+    lines += [f"| {r['name']} | {', '.join(map(str, r['ts']))} | {r['exit_from']} | "
+              f"{r['start']} | {r['exit']} | {len(r['ts']) - r['start'] - r['exit']} |"
+              for r in rows]
+    total = sum(r["windows"] for r in rows)
+    weighted = sum(len(r["ts"]) for r in rows)
+    start, exit_ = sum(r["start"] for r in rows), sum(r["exit"] for r in rows)
+    mass = (1 + args.weight) * weighted / (total + args.weight * weighted)
+    exit_mass = (1 + args.weight) * exit_ / (total + args.weight * weighted)
+    lines.append(f"\n`--speedup-fraction {args.fraction:g}` weighs {weighted} of the {total} "
+                 f"training windows ({100 * weighted / total:.1f} %): {start} at the start, "
+                 f"{exit_} in the exit, {weighted - start - exit_} elsewhere. With "
+                 f"`--speedup-weight {args.weight:g}` they carry {100 * mass:.0f} % of the loss, "
+                 f"the exit's {100 * exit_mass:.0f} % (before: {100 * exit_ / total:.0f} %).")
+    lines.append("\n" + provenance(radius))
+    atomic_write_text(args.out, "\n".join(lines) + "\n")
+    print("\n".join(lines))
+
+
+if __name__ == "__main__":
+    main()
