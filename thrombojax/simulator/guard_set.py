@@ -71,6 +71,8 @@ class GuardSet:
         margin, tol: containment distances (scaled coordinates).
         coherence: apply :func:`~thrombojax.simulator.guards.coherence`.
         stiffness, tolerance: coherence settings (tolerance in scaled coordinates).
+        keep_centroid: coherence leaves the clot's centroid where the step put it
+            (:func:`~thrombojax.simulator.guards.coherence`'s ``keep_centroid``).
         centring: apply :func:`~thrombojax.simulator.centring.centre_clot` first.
         centre_tolerance, centre_lengths: its tolerance and ``(axis_radius, slab, reach)``
             (scaled coordinates).
@@ -87,6 +89,7 @@ class GuardSet:
     coherence: bool = struct.field(pytree_node=False, default=True)
     stiffness: jax.Array | float = 1.0
     tolerance: jax.Array | float = 0.0
+    keep_centroid: bool = struct.field(pytree_node=False, default=False)
     centring: bool = struct.field(pytree_node=False, default=False)
     centre_tolerance: jax.Array | float = 0.0
     centre_lengths: tuple[float, float, float] = struct.field(pytree_node=False,
@@ -132,7 +135,7 @@ class GuardSet:
             corrections["centring"] = jnp.zeros(n, x.dtype).at[idx].set(moved)
         if self.coherence:
             xc, moved = coherence(xc, self.x_ref, ones, stiffness=self.stiffness,
-                                  tolerance=self.tolerance)
+                                  tolerance=self.tolerance, keep_centroid=self.keep_centroid)
             corrections["coherence"] = jnp.zeros(n, x.dtype).at[idx].set(moved)
         if self.containment:
             xc, moved = contain(xc, ones, self.wall, margin=self.margin, tol=self.tol)
@@ -154,6 +157,7 @@ def build_guards(
     tol_r: float = 0.01,
     stiffness: float = 1.0,
     tolerance_r: float = FIXED_COHERENCE_R,
+    keep_centroid: bool = False,
     centring_r: float | None = None,
     pace: float | None = None,
 ) -> GuardSet:
@@ -172,6 +176,7 @@ def build_guards(
         containment, coherence: switch each guard.
         margin_r, tol_r: containment margin and tolerance, in vessel radii.
         stiffness: coherence stiffness in [0, 1]. tolerance_r: coherence tolerance in radii.
+        keep_centroid: coherence leaves the clot's centroid where the step put it.
         centring_r: the centring guard's tolerance in radii (>= 0; the clot's centroid may lie
             this far from the middle of the vessel's cross-section); None: no centring.
         pace: the factor on every clot node's learned step before the guards (> 0; 1 leaves the
@@ -198,7 +203,8 @@ def build_guards(
         x_ref=jnp.asarray(np.asarray(x_start, np.float32)[clot]),
         containment=bool(containment), margin=float(margin_r * radius),
         tol=float(tol_r * radius), coherence=bool(coherence), stiffness=float(stiffness),
-        tolerance=float(tolerance_r * radius), centring=centring_r is not None,
+        tolerance=float(tolerance_r * radius), keep_centroid=bool(keep_centroid),
+        centring=centring_r is not None,
         centre_tolerance=float((centring_r or 0.0) * radius),
         centre_lengths=centre_lengths(radius),
         pace=jnp.asarray(1.0 if pace is None else pace, jnp.float32), pacing=pace is not None,

@@ -89,6 +89,7 @@ def coherence(
     *,
     stiffness: float,
     tolerance: float = 0.0,
+    keep_centroid: bool = False,
 ) -> tuple[jax.Array, jax.Array]:
     """Shape matching of the clot to its rest shape. Jittable, vmappable.
 
@@ -104,6 +105,12 @@ def coherence(
         clot_mask: ``[N]`` bool, the clot's real nodes (one body).
         stiffness: in [0, 1]; 0 does nothing, 1 snaps to the rigid copy (beyond ``tolerance``).
         tolerance: deviation from the rigid copy allowed without correction (>= 0).
+        keep_centroid: take the clot nodes' mean move out of every clot node's move (static),
+            so the clot's centroid stays where the step put it. Without a tolerance the
+            moves already sum to zero (the rigid copy shares the clot's centroid, as in
+            Mueller et al.'s shape matching, whose internal forces conserve momentum); with
+            one, only the nodes beyond it move, and a clot stretched on one side (its front
+            leaving the vessel first) is pulled back along its motion.
     Returns:
         ``(x_new [N, 3], correction [N])``.
     """
@@ -114,6 +121,9 @@ def coherence(
     norm = safe_norm(dev, keepdims=True)
     excess = dev * jnp.maximum(1.0 - tolerance / jnp.maximum(norm, 1e-30), 0.0)
     move = jnp.where(clot_mask[:, None], stiffness * excess, 0.0)
+    if keep_centroid:
+        mean = jnp.sum(move, axis=0) / jnp.maximum(jnp.sum(w), 1.0)
+        move = jnp.where(clot_mask[:, None], move - mean, 0.0)
     return x + move, safe_norm(move)
 
 
