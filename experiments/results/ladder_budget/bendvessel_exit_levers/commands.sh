@@ -40,12 +40,15 @@ done; wait
 KEEP="outlet_e2_keep=$R90/bv_outlet_s0+$R90/bv_outlet_s1:guards,tolerance_r=$AUTO,keep_centroid=1
     steady_e2_keep=$R94/gate/bv_s0+$R94/gate/bv_s1:guards,tolerance_r=$AUTO,keep_centroid=1
     speedup_e2_keep=$R/sw/bv_s0+$R/sw/bv_s1:guards,tolerance_r=$AUTO,keep_centroid=1"
-ROWS="$(rows outlet $R90/bv_outlet) $(rows steady $R94/gate/bv) $(rows hist $R/hist/bv) $(rows speedup $R/sw/bv) $KEEP"
+# Each guard alone on the speed-up ensemble
+ONE="speedup_e2_cohonly=$R/sw/bv_s0+$R/sw/bv_s1:guards,containment=0,tolerance_r=$AUTO
+    speedup_e2_contonly=$R/sw/bv_s0+$R/sw/bv_s1:guards,coherence=0"
+ROWS="$(rows outlet $R90/bv_outlet) $(rows steady $R94/gate/bv) $(rows hist $R/hist/bv) $(rows speedup $R/sw/bv) $KEEP $ONE"
 python $CE $OUT/heldout data/bendvessel.h5 bendvessel_005,bendvessel_012,bendvessel_019 \
-    "BendVessel, held out (190 degrees outside the training rotations): the outlet recipe (outlet), with the speed noise on steady windows only (steady, --speed-noise-steady 0.1), with a history frame as well (hist, --history 2 --speed-noise-steady 0.1) and with the windows whose clot speeds up weighted 1 + 3 in the loss (speedup, --speedup-weight 3); seeds 0 and 1 (37 epochs) and their ensemble, alone and guarded at auto (0.207 r); *_keep: the ensembles guarded with coherence keeping the clot's centroid (keep_centroid)" $ROWS
+    "BendVessel, held out (190 degrees outside the training rotations): the outlet recipe (outlet), with the speed noise on steady windows only (steady, --speed-noise-steady 0.1), with a history frame as well (hist, --history 2 --speed-noise-steady 0.1) and with the windows whose clot speeds up weighted 1 + 3 in the loss (speedup, --speedup-weight 3); seeds 0 and 1 (37 epochs) and their ensemble, alone and guarded at auto (0.207 r); *_keep: the ensembles guarded with coherence keeping the clot's centroid (keep_centroid); speedup_e2_cohonly / _contonly: each guard alone" $ROWS
 python $CE --sims-kind "validation simulation" $OUT/validation data/bendvessel.h5 bendvessel_009 \
     "BendVessel, validation: the same rows" $ROWS
-L=outlet_s0_auto,outlet_s1_auto,outlet_e2_auto,steady_s0_auto,steady_s1_auto,steady_e2_auto,hist_s0_auto,hist_s1_auto,hist_e2_auto,speedup_s0_auto,speedup_s1_auto,speedup_e2_auto,outlet_e2_keep,steady_e2_keep,speedup_e2_keep,outlet_e2_alone,steady_e2_alone,hist_e2_alone,speedup_s0_alone,speedup_s1_alone,speedup_e2_alone
+L=outlet_s0_auto,outlet_s1_auto,outlet_e2_auto,steady_s0_auto,steady_s1_auto,steady_e2_auto,hist_s0_auto,hist_s1_auto,hist_e2_auto,speedup_s0_auto,speedup_s1_auto,speedup_e2_auto,outlet_e2_keep,steady_e2_keep,speedup_e2_keep,speedup_e2_cohonly,speedup_e2_contonly,outlet_e2_alone,steady_e2_alone,hist_e2_alone,speedup_s0_alone,speedup_s1_alone,speedup_e2_alone
 python experiments/results/ladder_budget/bendvessel_speed_noise/track_table.py --out $OUT/track.md \
     $OUT/heldout $L $OUT/validation $L
 # Teacher-forced: what the speed-up-weighted steps make of the true frames in the exit
