@@ -441,3 +441,13 @@ def width_speed_error(window: Callable, option: str, value: float) -> float:
         pred = (nxt - 2 * frames[1] + frames[0])[clot, 0].mean()
         errors.append(abs(pred - accel))
     return float(np.mean(errors)) / 0.01
+
+
+def tiny_mgn_step():
+    """The tiny MeshGraphNet as a learned step (8 neighbours, radius 0.45): the model of the
+    training-noise and loss-weight tests on :func:`ring_clot_window` clots."""
+    from thrombojax.models.registry import create_model, get_config
+    from thrombojax.simulator.step import make_step
+
+    return make_step(create_model("mgn", get_config("mgn", tiny=True, max_neighbors=8,
+                                                    radius=0.45)))

@@ -8,15 +8,9 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 import numpy as np
+from wall_factory import clot_cloud
 
 from thrombojax.simulator.guards import coherence
-
-
-def _clot(n_real=40, n_pad=5, seed=0):
-    rng = np.random.default_rng(seed)
-    ref = np.concatenate([rng.normal(size=(n_real, 3)) * [1.0, 0.4, 0.3],
-                          np.full((n_pad, 3), 7.0)]).astype(np.float32)
-    return ref, np.arange(n_real + n_pad) < n_real
 
 
 def _front_stretched(ref, mask, by=0.6):
@@ -40,7 +34,7 @@ def _shape_error(x, ref, mask):
 
 
 def test_keep_centroid_leaves_the_centroid_where_the_step_put_it():
-    ref, mask = _clot()
+    ref, mask = clot_cloud()
     x = _front_stretched(ref, mask)
     f = jax.jit(lambda a, keep: coherence(a, jnp.asarray(ref), jnp.asarray(mask), stiffness=1.0,
                                           tolerance=0.1, keep_centroid=keep),

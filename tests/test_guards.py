@@ -4,7 +4,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from wall_factory import bent_vessel, radial_push, true_phi
+from wall_factory import bent_vessel, clot_cloud, radial_push, true_phi
 
 from thrombojax.errors import ConfigError, DatasetError
 from thrombojax.sim.geometry import rotation_matrix, signed_distance_np
@@ -185,14 +185,6 @@ def test_bad_walls_are_rejected(vessel):
 
 # ----------------------------------------------------------------------------- coherence
 
-def _clot(n_real=40, n_pad=5, seed=0):
-    rng = np.random.default_rng(seed)
-    ref = np.concatenate([rng.normal(size=(n_real, 3)) * [1.0, 0.4, 0.3],
-                          np.full((n_pad, 3), 7.0)]).astype(np.float32)
-    mask = np.arange(n_real + n_pad) < n_real
-    return ref, mask
-
-
 def _rigid(x, angle=35.0, shift=(0.3, -1.0, 2.0)):
     rot = rotation_matrix("z", angle) @ rotation_matrix("x", 20.0)
     return (x @ rot.T + np.asarray(shift)).astype(np.float32), rot
@@ -203,7 +195,7 @@ def _pairwise(x):
 
 
 def test_coherence_leaves_a_rigidly_moved_clot_alone():
-    ref, mask = _clot()
+    ref, mask = clot_cloud()
     x, _ = _rigid(ref)
     x[~mask] = -3.0  # garbage in padded rows
     x_new, corr = jax.jit(lambda a: coherence(a, jnp.asarray(ref), jnp.asarray(mask),
@@ -212,8 +204,8 @@ def test_coherence_leaves_a_rigidly_moved_clot_alone():
     np.testing.assert_array_equal(np.asarray(x_new)[~mask], x[~mask])
 
 
-def test_coherence_restores_a_stretched_rotated_clot():
-    ref, mask = _clot()
+def test_coherence_restores_a_stretched_rotatedclot_cloud():
+    ref, mask = clot_cloud()
     rigid, _ = _rigid(ref)
     stretched = rigid.copy()
     stretched[mask] = rigid[mask] * [1.5, 0.8, 1.0] + 0.05 * np.random.default_rng(1).normal(
@@ -233,8 +225,8 @@ def test_coherence_restores_a_stretched_rotated_clot():
     np.testing.assert_allclose(corr_half, 0.5 * corr, rtol=1e-4, atol=1e-6)
 
 
-def test_coherence_never_mirrors_the_clot():
-    ref, mask = _clot()
+def test_coherence_never_mirrors_theclot_cloud():
+    ref, mask = clot_cloud()
     mirrored = ref.copy()
     mirrored[:, 0] *= -1.0
     out, _ = jax.jit(lambda a: coherence(a, jnp.asarray(ref), jnp.asarray(mask),
@@ -248,7 +240,7 @@ def test_coherence_never_mirrors_the_clot():
 
 
 def test_coherence_tolerance_allows_small_deviations():
-    ref, mask = _clot()
+    ref, mask = clot_cloud()
     x = ref + 0.01 * np.random.default_rng(2).normal(size=ref.shape).astype(np.float32)
     f = jax.jit(lambda a, tol: coherence(a, jnp.asarray(ref), jnp.asarray(mask), stiffness=1.0,
                                          tolerance=tol)[1])
@@ -257,7 +249,7 @@ def test_coherence_tolerance_allows_small_deviations():
 
 
 def test_coherence_under_vmap():
-    ref, mask = _clot()
+    ref, mask = clot_cloud()
     xs = np.stack([_rigid(ref, a)[0] * 1.2 for a in (0.0, 60.0)])
     f = lambda a: coherence(a, jnp.asarray(ref), jnp.asarray(mask), stiffness=1.0)  # noqa: E731
     batched = jax.jit(jax.vmap(f))(jnp.asarray(xs))
@@ -266,7 +258,7 @@ def test_coherence_under_vmap():
 
 
 def test_relax_edges_brings_strain_within_limits():
-    ref, mask = _clot(n_real=8, n_pad=2)
+    ref, mask = clot_cloud(n_real=8, n_pad=2)
     tets = np.array([[0, 1, 2, 3], [1, 2, 3, 4], [4, 5, 6, 7]])
     s, r = cell_edges(tets)
     assert len(s) == 6 + 3 + 6  # the two first tets share a face

@@ -14,7 +14,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from dataset_factory import ring_clot_window, train_tiny_step, window_batch
+from dataset_factory import ring_clot_window, tiny_mgn_step, train_tiny_step, window_batch
 
 from thrombojax.errors import ConfigError
 from thrombojax.eval.drift import speed_carry
@@ -89,14 +89,6 @@ def test_speed_noise_on_steady_windows_only_leaves_a_clot_that_speeds_up_or_rest
     assert args.speed_noise_steady == 0.1
 
 
-def _tiny_step():
-    from thrombojax.models.registry import create_model, get_config
-    from thrombojax.simulator.step import make_step
-
-    return make_step(create_model("mgn", get_config("mgn", tiny=True, max_neighbors=8,
-                                                    radius=0.45)))
-
-
 SPEEDS = (0.04, 0.05, 0.06)
 
 
@@ -108,7 +100,7 @@ def _batch():
 def test_the_training_loss_uses_the_speed_noise():
     from thrombojax.train.step import batch_loss
 
-    batch, step = _batch(), _tiny_step()
+    batch, step = _batch(), tiny_mgn_step()
     params = step.init(jax.random.key(0), batch.frames[0, 0], batch.frames[0, 1],
                        batch.node_type[0], batch.mask[0])
     losses = [float(batch_loss(step, params, STATS, batch, jax.random.key(1), train=True,
@@ -127,7 +119,7 @@ def test_the_training_loss_uses_the_speed_noise():
 def _carry_after_training(speed_noise: float) -> float:
     """Train the tiny step on clots that keep their speed (0.04, 0.05 or 0.06 per frame), then
     return the share of a 5 % speed error in its inputs that its prediction keeps."""
-    step = _tiny_step()
+    step = tiny_mgn_step()
     params = train_tiny_step(step, _batch(), STATS, speed_noise=speed_noise)
     frames, nt, mask = _window(0.05, seed=7)
     return float(speed_carry(step, params, STATS, np.asarray(frames), np.asarray(nt),

@@ -13,7 +13,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from dataset_factory import ring_clot_window, train_tiny_step, window_batch
+from dataset_factory import ring_clot_window, tiny_mgn_step, train_tiny_step, window_batch
 
 from thrombojax.errors import ConfigError
 from thrombojax.train.config import TrainConfig
@@ -63,14 +63,6 @@ def test_config_and_cli_take_the_speedup_weight():
     assert (options["speedup_weight"], options["speedup_fraction"]) == (3.0, 0.2)
 
 
-def _tiny_step():
-    from thrombojax.models.registry import create_model, get_config
-    from thrombojax.simulator.step import make_step
-
-    return make_step(create_model("mgn", get_config("mgn", tiny=True, max_neighbors=8,
-                                                    radius=0.45)))
-
-
 def _mixed_batch():
     """Two clots that keep their speed, one that speeds up by 33 % into s_t+1 (s_t = frame 1)."""
     return window_batch([ring_clot_window(0.05, seed=0), ring_clot_window(0.06, seed=1),
@@ -83,7 +75,7 @@ def test_the_loss_is_the_window_weighted_mean_and_the_mse_stays_plain():
     does not change with W."""
     from thrombojax.train.step import batch_loss
 
-    batch, step = _mixed_batch(), _tiny_step()
+    batch, step = _mixed_batch(), tiny_mgn_step()
     params = step.init(jax.random.key(0), batch.frames[0, 0], batch.frames[0, 1],
                        batch.node_type[0], batch.mask[0])
 
@@ -110,7 +102,7 @@ def test_the_weight_teaches_a_step_the_window_where_the_clot_speeds_up():
     speeding clot's next frame better with the weight than without (same seed, same steps)."""
     from thrombojax.train.step import batch_loss
 
-    batch, step = _mixed_batch(), _tiny_step()
+    batch, step = _mixed_batch(), tiny_mgn_step()
     speeding = window_batch([(batch.frames[2], batch.node_type[2], batch.mask[2])])
     errors = []
     for weight in (0.0, 9.0):

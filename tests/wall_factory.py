@@ -94,3 +94,12 @@ class Outward:
     def apply(self, params, inputs, graph, *, train=False, rng=None):
         radial = inputs.positions * jnp.asarray([0.0, 1.0, 1.0])
         return 0.05 * radial / (jnp.linalg.norm(radial, axis=-1, keepdims=True) + 1e-6)
+
+
+def clot_cloud(n_real: int = 40, n_pad: int = 5, seed: int = 0):
+    """``(ref [N, 3] float32, mask [N])``: an elongated cloud of ``n_real`` clot nodes (std 1,
+    0.4, 0.3 along x, y, z) and ``n_pad`` padded rows at 7.0, for the coherence guard's tests."""
+    rng = np.random.default_rng(seed)
+    ref = np.concatenate([rng.normal(size=(n_real, 3)) * [1.0, 0.4, 0.3],
+                          np.full((n_pad, 3), 7.0)]).astype(np.float32)
+    return ref, np.arange(n_real + n_pad) < n_real

@@ -90,24 +90,25 @@ def measure(ds, name: str, radius: float) -> dict:
 
 
 @functools.partial(jax.jit, static_argnames="fraction")
-def _noised(window, key, node_type, mask, *, fraction: float):
-    """One three-frame window through ``add_speed_noise(..., steady=fraction)`` (compiled once
-    per node count)."""
-    return add_speed_noise(key, window, node_type, mask, std=0.3, current=1, steady=fraction)
+def _noised(windows, keys, node_type, mask, *, fraction: float):
+    """Every three-frame window ``[W, 3, N, 3]`` through ``add_speed_noise(..., steady=fraction)``
+    with its own key, in one call (compiled once per window and node count)."""
+    return jax.vmap(lambda w, k: add_speed_noise(k, w, node_type, mask, std=0.3, current=1,
+                                                 steady=fraction))(windows, keys)
 
 
 def unnoised_share(ds, names: list[str], fraction: float) -> tuple[int, int]:
     """(windows ``add_speed_noise(..., steady=fraction)`` returns as given, windows) over the
-    three-frame windows of ``names``."""
+    three-frame windows of ``names`` (window ``t`` drawn with ``jax.random.key(t)``)."""
     kept = total = 0
     for name in names:
         pos, nt = ds.positions(name), ds.node_type(name)
-        mask = np.ones(len(nt), bool)
-        for t in range(1, len(pos) - 1):
-            window = pos[t - 1:t + 2]
-            out = np.asarray(_noised(window, jax.random.key(t), nt, mask, fraction=fraction))
-            kept += int(np.array_equal(out, window))
-            total += 1
+        ts = np.arange(1, len(pos) - 1)
+        windows = np.stack([pos[t - 1:t + 2] for t in ts])
+        keys = jax.vmap(jax.random.key)(ts)
+        out = np.asarray(_noised(windows, keys, nt, np.ones(len(nt), bool), fraction=fraction))
+        kept += int(sum(np.array_equal(o, w) for o, w in zip(out, windows, strict=True)))
+        total += len(ts)
     return kept, total
 
 

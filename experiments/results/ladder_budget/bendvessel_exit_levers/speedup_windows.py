@@ -18,6 +18,7 @@ atomically and replaced only with ``--force``. From the repository root::
 from __future__ import annotations
 
 import argparse
+import functools
 import pathlib
 import sys
 
@@ -35,7 +36,12 @@ from thrombojax.types import clot_mask
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "bendvessel_exit"))
 from exit_truth import STEADY_FRAMES, exit_of, provenance  # noqa: E402
 
-_weight = jax.jit(speedup_window_weight, static_argnames=("current", "weight", "fraction"))
+
+@functools.partial(jax.jit, static_argnames="fraction")
+def _weights(windows, node_type, mask, *, fraction: float):
+    """:func:`speedup_window_weight` (weight 1) of every three-frame window ``[W, 3, N, 3]``."""
+    return jax.vmap(lambda w: speedup_window_weight(w, node_type, mask, current=1, weight=1.0,
+                                                    fraction=fraction))(windows)
 
 
 def count(ds, name: str, radius: float, fraction: float) -> dict:
@@ -44,9 +50,9 @@ def count(ds, name: str, radius: float, fraction: float) -> dict:
     mask = np.ones(len(nt), bool)
     speed = np.linalg.norm(np.diff(clot_centroids(pos, clot_mask(nt)) / radius, axis=0), axis=1)
     k = exit_of(speed)
-    ts = [t for t in range(1, len(pos) - 1)
-          if float(_weight(pos[t - 1:t + 2], nt, mask, current=1, weight=1.0,
-                           fraction=fraction)) > 1.0]
+    windows = np.stack([pos[t - 1:t + 2] for t in range(1, len(pos) - 1)])
+    weights = np.asarray(_weights(windows, nt, mask, fraction=fraction))
+    ts = [int(t) + 1 for t in np.flatnonzero(weights > 1.0)]  # window i holds s_t at t = i + 1
     return {"name": name, "windows": len(pos) - 2, "ts": ts, "exit_from": k,
             "start": sum(t < STEADY_FRAMES.start for t in ts), "exit": sum(t >= k for t in ts)}
 
