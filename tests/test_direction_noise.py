@@ -15,8 +15,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from dataset_factory import train_tiny_step
-from test_speed_noise import STATS, _batch, _tiny_step, _window
+from dataset_factory import tiny_mgn_step, train_tiny_step
+from test_speed_noise import STATS, _batch, _window
 
 from thrombojax.errors import ConfigError
 from thrombojax.eval.drift import direction_carry
@@ -74,7 +74,7 @@ def test_direction_noise_off_and_bad_values():
 def test_the_training_loss_uses_the_direction_noise():
     from thrombojax.train.step import batch_loss
 
-    batch, step = _batch(), _tiny_step()
+    batch, step = _batch(), tiny_mgn_step()
     params = step.init(jax.random.key(0), batch.frames[0, 0], batch.frames[0, 1],
                        batch.node_type[0], batch.mask[0])
     losses = [float(batch_loss(step, params, STATS, batch, jax.random.key(1), train=True,
@@ -85,7 +85,7 @@ def test_the_training_loss_uses_the_direction_noise():
 def _carry_after_training(direction_noise: float) -> float:
     """Train the tiny step on clots sliding along x, then return the share of a 0.1 rad
     sideways turn of its input motion that its prediction keeps."""
-    step = _tiny_step()
+    step = tiny_mgn_step()
     params = train_tiny_step(step, _batch(), STATS, direction_noise=direction_noise)
     frames, nt, mask = _window(0.05, seed=7)
     return float(direction_carry(step, params, STATS, np.asarray(frames), np.asarray(nt),

@@ -14,8 +14,13 @@ from __future__ import annotations
 import jax
 import numpy as np
 import pytest
-from dataset_factory import lattice_clot_window, ring_clot_window, stretch_carry_after_training
-from test_speed_noise import STATS, _batch, _tiny_step, _window
+from dataset_factory import (
+    lattice_clot_window,
+    ring_clot_window,
+    stretch_carry_after_training,
+    tiny_mgn_step,
+)
+from test_speed_noise import STATS, _batch, _window
 
 from thrombojax.errors import ConfigError
 from thrombojax.eval.drift import swell_carry
@@ -77,7 +82,7 @@ def test_a_clot_at_rest_is_not_stretched_and_bad_values_are_refused():
 def test_the_training_loss_uses_the_stretch_noise():
     from thrombojax.train.step import batch_loss
 
-    batch, step = _batch(), _tiny_step()
+    batch, step = _batch(), tiny_mgn_step()
     params = step.init(jax.random.key(0), batch.frames[0, 0], batch.frames[0, 1],
                        batch.node_type[0], batch.mask[0])
     losses = [float(batch_loss(step, params, STATS, batch, jax.random.key(1), train=True,
@@ -89,7 +94,7 @@ def _stretch_carry_after_training(stretch_noise: float) -> float:
     """The tiny step trained on true lattice clots of nine orientations
     (:func:`dataset_factory.stretch_carry_after_training`): the share of a 5 % stretch it
     keeps on two lattices turned other ways."""
-    return stretch_carry_after_training(_tiny_step(), lattice_clot_window, STATS,
+    return stretch_carry_after_training(tiny_mgn_step(), lattice_clot_window, STATS,
                                         stretch_noise=stretch_noise)
 
 

@@ -13,8 +13,8 @@ from __future__ import annotations
 import jax
 import numpy as np
 import pytest
-from dataset_factory import lattice_clot_window, train_tiny_step, window_batch
-from test_speed_noise import SPEEDS, STATS, _batch, _tiny_step, _window
+from dataset_factory import lattice_clot_window, tiny_mgn_step, train_tiny_step, window_batch
+from test_speed_noise import SPEEDS, STATS, _batch, _window
 
 from thrombojax.errors import ConfigError
 from thrombojax.eval.drift import swell_carry
@@ -68,7 +68,7 @@ def test_swell_noise_off_and_bad_values():
 def test_the_training_loss_uses_the_swell_noise():
     from thrombojax.train.step import batch_loss
 
-    batch, step = _batch(), _tiny_step()
+    batch, step = _batch(), tiny_mgn_step()
     params = step.init(jax.random.key(0), batch.frames[0, 0], batch.frames[0, 1],
                        batch.node_type[0], batch.mask[0])
     losses = [float(batch_loss(step, params, STATS, batch, jax.random.key(1), train=True,
@@ -80,7 +80,7 @@ def _swell_carry_after_training(swell_noise: float) -> float:
     """Train the tiny step on true clots (regular lattices moving at 0.04, 0.05 or 0.06 per
     frame, 1,200 Adam steps), then return the share of a 5 % swelling in its inputs that its
     next clot keeps, on a lattice turned another way."""
-    step = _tiny_step()
+    step = tiny_mgn_step()
     batch = window_batch([lattice_clot_window(v, seed=i) for i, v in enumerate(SPEEDS)])
     params = train_tiny_step(step, batch, STATS, steps=1200, swell_noise=swell_noise)
     frames, nt, mask = lattice_clot_window(0.05, seed=7)

@@ -13,8 +13,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from dataset_factory import train_tiny_step
-from test_speed_noise import STATS, _batch, _tiny_step, _window
+from dataset_factory import tiny_mgn_step, train_tiny_step
+from test_speed_noise import STATS, _batch, _window
 
 from thrombojax.errors import ConfigError
 from thrombojax.train.config import TrainConfig
@@ -60,7 +60,7 @@ def _error_at_unseen_speed(time_scale: float) -> float:
     RMS of its predicted clot acceleration (the truth's is 0) for a clot at 0.1 per frame."""
     from thrombojax.eval.single_step import batched_next
 
-    step = _tiny_step()
+    step = tiny_mgn_step()
     params = train_tiny_step(step, _batch(), STATS, time_scale=time_scale)
     frames, nt, mask = _window(0.1, seed=7)
     nxt = batched_next(step, params, STATS, frames[None, 1], frames[None, 2], nt, mask)[0]
