@@ -307,6 +307,23 @@ def test_rollout_coherence_tolerance_reaches_the_guard(tiny_run, capsys):
                  "--coherence-tolerance", "0.5"]) == 2
     assert "--coherence-tolerance with --no-guards" in capsys.readouterr().err
     assert not (root / "coherence_alone").exists()
+    # --coherence-stretch: the copy may stretch; 'auto' is fitted to that copy and recorded
+    assert main([*common, "--out", str(root / "coherence_stretch"),
+                 "--coherence-stretch", "1.2"]) == 0
+    rep = json.loads((root / "coherence_stretch" / "rollout.json").read_text())
+    bent = fit_coherence(ds, trained.split.train, float(vessel_radius(ds)),
+                         study.skip_frames(ds), max_stretch=1.2)
+    assert rep["coherence_stretch"] == 1.2 and rep["coherence_fit"] == bent
+    assert rep["coherence_r"] == bent["coherence_r"]
+    assert "stretching up to 1.2x at constant volume" in (
+        root / "coherence_stretch" / "rollout.md").read_text()
+    capsys.readouterr()
+    assert main([*common, "--out", str(root / "stretch_alone"), "--no-guards",
+                 "--coherence-stretch", "1.2"]) == 2
+    assert "--coherence-stretch with --no-guards" in capsys.readouterr().err
+    with pytest.raises(SystemExit):  # argparse: S must be >= 1
+        main([*common, "--out", str(root / "stretch_low"), "--coherence-stretch", "0.9"])
+    assert not (root / "stretch_alone").exists() and not (root / "stretch_low").exists()
 
 
 def test_rollout_of_an_ensemble_reports_its_spread(tiny_run):

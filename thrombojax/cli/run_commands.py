@@ -7,6 +7,7 @@ from thrombojax.cli.options import (
     NN_INT,
     POS_INT,
     auto_radii,
+    float_at_least,
     output_flags,
 )
 
@@ -107,6 +108,12 @@ def _add_rollout(sub) -> None:
                    "alone (0.21 r on BendVessel, 0.38 r on ClotEntry; their true clots stray "
                    "up to 0.5 and 1.3 r). Default: auto when the run's dataset is there, "
                    "else 1, with a warning")
+    p.add_argument("--coherence-stretch", type=float_at_least(1.0), metavar="S",
+                   help="the coherence guard's copy of the start frame may also stretch, "
+                   "keeping its volume, by principal stretches up to S (and down to 1/S), so a "
+                   "clot that shortens and widens as it leaves the vessel is not pulled back to "
+                   "its shape inside it; 'auto' tolerance is then fitted to that copy (default: "
+                   "a rigid copy)")
     p.add_argument("--centre-pull", type=NN_FLOAT, metavar="K", help="(a run trained with "
                    "--follow-axis) the prior's centring pull at strength K in (0, 1], set at "
                    "rollout time, in the single steps too (default: the run's own, if any)")
@@ -129,7 +136,8 @@ def _run_rollout(args) -> int:
                       n_nodes=args.nodes, seed=args.seed, format=args.format,
                       gif=not args.no_gif, force=args.force, progress=not args.quiet,
                       guards=not args.no_guards, rotations=args.rotations, centring_r=args.centring,
-                      coherence_r=args.coherence, centre_pull=args.centre_pull,
+                      coherence_r=args.coherence, coherence_stretch=args.coherence_stretch,
+                      centre_pull=args.centre_pull,
                       centre_tolerance=args.centre_tolerance)
     print(f"simulations: {res['selection']['how']}")
     print(res["table"], end="")

@@ -20,6 +20,7 @@ BendVessel; at ``auto`` it stays within 7 % of the true clot's size and ends nea
 
 from __future__ import annotations
 
+import functools
 from typing import Any
 
 import jax
@@ -38,15 +39,19 @@ AUTO_QUANTILE: float = 0.95
 alone."""
 
 
-@jax.jit
-def _frame_deviations(frames: jax.Array, ref: jax.Array) -> jax.Array:
-    """``[F, C]``: each clot node's distance from its place in the best rigid copy of ``ref``."""
+@functools.partial(jax.jit, static_argnames="stretching")
+def _frame_deviations(frames: jax.Array, ref: jax.Array, max_stretch: jax.Array,
+                      stretching: bool) -> jax.Array:
+    """``[F, C]``: each clot node's distance from its place in the best rigid (or, when
+    ``stretching``, bounded-stretch) copy of ``ref``."""
     mask = jnp.ones(ref.shape[0], bool)
-    return jax.vmap(lambda x: coherence(x, ref, mask, stiffness=1.0, tolerance=0.0)[1])(frames)
+    ms = max_stretch if stretching else None
+    return jax.vmap(lambda x: coherence(x, ref, mask, stiffness=1.0, tolerance=0.0,
+                                        max_stretch=ms)[1])(frames)
 
 
 def clot_deviations(positions: np.ndarray, node_type: np.ndarray, start: int,
-                    radius: float) -> np.ndarray:
+                    radius: float, *, max_stretch: float | None = None) -> np.ndarray:
     """``[T - start - 1, C]``: every true clot node's distance (vessel radii) from its place in
     the best rigid copy of the clot at frame ``start``, at each frame after ``start``.
 
@@ -55,6 +60,7 @@ def clot_deviations(positions: np.ndarray, node_type: np.ndarray, start: int,
         node_type: ``[N]`` node types (the clot's nodes are measured).
         start: the rollout's start frame (the coherence guard's reference), ``0 <= start < T``.
         radius: the vessel radius in the positions' unit (> 0).
+        max_stretch: the coherence guard's ``max_stretch`` (None: its rigid copy).
     Raises:
         DatasetError: no clot node, or ``start`` outside the frames.
     """
@@ -66,11 +72,14 @@ def clot_deviations(positions: np.ndarray, node_type: np.ndarray, start: int,
         raise DatasetError(f"clot_deviations: start frame {start} is outside the simulation's "
                            f"{pos.shape[0]} frames")
     clot_pos = jnp.asarray(pos[:, clot])
-    return np.asarray(_frame_deviations(clot_pos[start + 1:], clot_pos[start])) / radius
+    dev = _frame_deviations(clot_pos[start + 1:], clot_pos[start],
+                            jnp.float32(max_stretch or 1.0), max_stretch is not None)
+    return np.asarray(dev) / radius
 
 
 def fit_coherence(dataset: Any, names: list[str] | tuple[str, ...], radius: float, start: int,
-                  *, quantile: float = AUTO_QUANTILE) -> dict[str, Any]:
+                  *, quantile: float = AUTO_QUANTILE,
+                  max_stretch: float | None = None) -> dict[str, Any]:
     """The coherence tolerance (vessel radii) that leaves ``quantile`` of the true clots'
     (node, frame) pairs of the simulations ``names`` alone.
 
@@ -80,10 +89,11 @@ def fit_coherence(dataset: Any, names: list[str] | tuple[str, ...], radius: floa
         radius: the dataset's vessel radius (:func:`thrombojax.data.radius.vessel_radius`).
         start: the rollout's start frame (the dataset's ``skip_frames``).
         quantile: in (0, 1].
+        max_stretch: the coherence guard's ``max_stretch`` the tolerance is for (None: rigid).
     Returns:
-        ``{"coherence_r", "quantile", "start", "simulations", "pairs", "largest_r"}``: the
-        tolerance, the quantile, the reference frame, the simulations and (node, frame) pairs
-        measured and the largest distance among them.
+        ``{"coherence_r", "quantile", "start", "simulations", "pairs", "largest_r",
+        "max_stretch"}``: the tolerance, the quantile, the reference frame, the simulations and
+        (node, frame) pairs measured, the largest distance among them and ``max_stretch``.
     Raises:
         DatasetError: no simulations, or none with a frame after ``start`` (naming the dataset
             and simulation).
@@ -93,7 +103,8 @@ def fit_coherence(dataset: Any, names: list[str] | tuple[str, ...], radius: floa
     for name in names:
         sim = dataset[name]
         try:
-            pooled.append(clot_deviations(sim.positions, sim.node_type, start, radius).ravel())
+            pooled.append(clot_deviations(sim.positions, sim.node_type, start, radius,
+                                          max_stretch=max_stretch).ravel())
         except DatasetError as err:
             raise DatasetError(f"{dataset.path}: simulation '{name}': {err}") from None
     dev = np.concatenate(pooled)
@@ -102,4 +113,4 @@ def fit_coherence(dataset: Any, names: list[str] | tuple[str, ...], radius: floa
                            f"the start frame {start}; give --coherence-tolerance a number")
     return {"coherence_r": float(np.quantile(dev, quantile)), "quantile": float(quantile),
             "start": int(start), "simulations": list(names), "pairs": int(dev.size),
-            "largest_r": float(dev.max())}
+            "largest_r": float(dev.max()), "max_stretch": max_stretch}

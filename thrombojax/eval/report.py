@@ -184,6 +184,7 @@ def rollout_run(
     rotations: int = 0,
     centring_r: float | str | None = None,
     coherence_r: float | str | None = None,
+    coherence_stretch: float | None = None,
     centre_pull: float | None = None,
     centre_tolerance: float | str | None = None,
 ) -> dict:
@@ -230,6 +231,10 @@ def rollout_run(
             recorded under ``coherence_fit``; an error when that dataset is not there.
             ``None`` (the default): ``"auto"`` when the run's dataset is there, else the fixed
             ``FIXED_COHERENCE_R`` (1 r) with a warning.
+        coherence_stretch: with the guards, the coherence guard's copy of the start frame may
+            stretch, without a change of volume, up to this principal stretch (>= 1;
+            :func:`thrombojax.simulator.guards.coherence`'s ``max_stretch``; ``None``, the
+            default: a rigid copy); ``"auto"`` then fits the tolerance to that copy.
         centre_pull: the vessel-following prior's centring pull at this strength in (0, 1]
             (a run trained with ``--follow-axis``), at rollout time, in the single steps too
             (:mod:`thrombojax.eval.rollout_pull`); ``None``: the run's own (trained) pull.
@@ -243,9 +248,11 @@ def rollout_run(
     if centring_r is not None and not guards:
         raise ConfigError("rollout: centring is a guard; it cannot run without the guards "
                           "(--centring with --no-guards)")
-    if coherence_r is not None and not guards:
-        raise ConfigError("rollout: the coherence tolerance is a guard's; it cannot run without "
-                          "the guards (--coherence-tolerance with --no-guards)")
+    for value, what, flag in ((coherence_r, "tolerance", "--coherence-tolerance"),
+                              (coherence_stretch, "stretch", "--coherence-stretch")):
+        if value is not None and not guards:
+            raise ConfigError(f"rollout: the coherence {what} is a guard's; it cannot run "
+                              f"without the guards ({flag} with --no-guards)")
     ensemble = (pathlib.Path(run_dir) / "ensemble.json").is_file()
     if ensemble:
         members = load_ensemble(run_dir, which=which)
@@ -277,7 +284,8 @@ def rollout_run(
     coherence_fit = None
     if guards and coherence_r in (None, "auto"):
         coherence_fit = _auto_coherence(trained, ds, dataset_path, run_dir,
-                                        required=coherence_r == "auto")
+                                        required=coherence_r == "auto",
+                                        max_stretch=coherence_stretch)
         coherence_r = coherence_fit["coherence_r"] if coherence_fit else FIXED_COHERENCE_R
     units = radius_units(trained.scaling, ds)
     base, pull = rollout_pull(
@@ -298,7 +306,8 @@ def rollout_run(
                                  seed=seed, wall_cells=sim.wall_cells,
                                  ensemble=n_members > 1 or bool(rotations),
                                  guard_radius=1.0 / units.factor if guards else None,
-                                 centring_r=centring_r, coherence_r=coherence_r)
+                                 centring_r=centring_r, coherence_r=coherence_r,
+                                 coherence_stretch=coherence_stretch)
         check_finite({"predicted positions": float(np.sum(res.pred))},
                      f"{run_dir}: checkpoint '{which}' on simulation '{name}'")
         exit_at = simulation_exit_frame(pos, node_type, sim.wall_cells)
@@ -319,7 +328,8 @@ def rollout_run(
               "selection": {"how": how, "simulations": names}, "skip": skip,
               "skip_frames": skip_frames, "seed": seed, "units": units.to_dict(),
               "guards": bool(guards), "centring_r": centring_r, "centring_fit": centring_fit,
-              "coherence_r": coherence_r, "coherence_fit": coherence_fit, "centre_pull": pull,
+              "coherence_r": coherence_r, "coherence_fit": coherence_fit,
+              "coherence_stretch": coherence_stretch, "centre_pull": pull,
               "checkpoint": which, "ensemble_members": n_members, "rotations": int(rotations),
               "phase_definitions": PHASE_HELP, "date": env["date"], "environment": env,
               "simulations": report}
@@ -336,15 +346,17 @@ def _auto_centring(trained, ds, dataset_path, run_dir) -> dict:
     return fit_centring(train_ds, trained.split.train, float(vessel_radius(train_ds)))
 
 
-def _auto_coherence(trained, ds, dataset_path, run_dir, *, required: bool) -> dict | None:
+def _auto_coherence(trained, ds, dataset_path, run_dir, *, required: bool,
+                    max_stretch: float | None = None) -> dict | None:
     """``--coherence-tolerance auto`` (``required``) or the default: fit the tolerance on the
-    run's training simulations, from their dataset's rollout start (``skip_frames``). As the
+    run's training simulations, from their dataset's rollout start (``skip_frames``), for the
+    guard's copy (rigid, or stretching up to ``max_stretch``). As the
     default, a run whose dataset is not there (or cannot be fitted) keeps the fixed tolerance
     (None returned) with a warning that says why."""
     try:
         train_ds = training_dataset_of(trained, ds, dataset_path, run_dir, "--coherence-tolerance")
         return fit_coherence(train_ds, trained.split.train, float(vessel_radius(train_ds)),
-                             study.skip_frames(train_ds))
+                             study.skip_frames(train_ds), max_stretch=max_stretch)
     except (ConfigError, DatasetError) as err:
         if required:
             raise

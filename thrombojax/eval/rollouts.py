@@ -92,6 +92,7 @@ def rollout_simulation(
     centring_r: float | None = None,
     pace: float | None = None,
     coherence_r: float | None = None,
+    coherence_stretch: float | None = None,
 ) -> RolloutResult:
     """Roll a model out on one simulation and measure it (scaled coordinates throughout).
 
@@ -122,6 +123,9 @@ def rollout_simulation(
             part of a clot node's deviation from a rigid copy of the start frame beyond it is
             pulled back; ``None``: :func:`~thrombojax.simulator.guard_set.build_guards`'s
             default, 1 r); it needs ``guard_radius``.
+        coherence_stretch: with the guards, the coherence guard's copy of the start frame may
+            stretch, without a change of volume, up to this principal stretch (>= 1;
+            ``build_guards``' ``max_stretch``; ``None``: a rigid copy); it needs ``guard_radius``.
     Returns:
         The :class:`RolloutResult`.
     """
@@ -136,9 +140,9 @@ def rollout_simulation(
         raise ConfigError(f"simulation '{name}': centring is a guard: it needs the guards on")
     if pace is not None and guard_radius is None:
         raise ConfigError(f"simulation '{name}': pace acts with the guards: it needs them on")
-    if coherence_r is not None and guard_radius is None:
-        raise ConfigError(f"simulation '{name}': the coherence tolerance is a guard's: it needs "
-                          "the guards on")
+    if (coherence_r is not None or coherence_stretch is not None) and guard_radius is None:
+        raise ConfigError(f"simulation '{name}': the coherence tolerance and stretch are a "
+                          "guard's: they need the guards on")
     if not 1 <= n_steps <= max_steps:
         raise ConfigError(f"simulation '{name}': n_steps {n_steps} must be in 1..{max_steps} from "
                           f"frame {t0}")
@@ -150,7 +154,7 @@ def rollout_simulation(
     mask = np.ones(idx.size, bool)
     guards = None if guard_radius is None else build_guards(
         positions[0], node_type, x0, sub_type, radius=guard_radius, wall_cells=wall_cells,
-        centring_r=centring_r, pace=pace,
+        centring_r=centring_r, pace=pace, max_stretch=coherence_stretch,
         **({} if coherence_r is None else {"tolerance_r": float(coherence_r)}))
     spread = None
     if ensemble:

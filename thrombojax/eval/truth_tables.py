@@ -134,13 +134,17 @@ def _guard_lines(result: Mapping) -> str:
     """One line saying whether the guards acted and at which tolerances."""
     if not result.get("guards"):
         return "Guards: off (the model alone).\n\n"
-    fit = result.get("coherence_fit")
+    fit, stretch = result.get("coherence_fit"), result.get("coherence_stretch")
+    copy = ("a rigid copy" if stretch is None else
+            f"a copy stretching up to {stretch:.3g}x at constant volume")
     how = (f"fitted on the run's {len(fit['simulations'])} training simulation(s), the "
-           f"{fit['quantile']:.0%} quantile of their clots' distances from a rigid copy of "
+           f"{fit['quantile']:.0%} quantile of their clots' distances from {copy} of "
            f"frame {fit['start']}" if fit else "fixed")
     centring, tolerance = result.get("centring_r"), result.get("coherence_r")
-    return (f"Guards: on: containment; coherence with a tolerance of "
-            f"{FIXED_COHERENCE_R if tolerance is None else tolerance:.3g} r ({how})"
+    return ("Guards: on: containment; coherence "
+            + ("" if stretch is None else f"to {copy} ")
+            + f"with a tolerance of {FIXED_COHERENCE_R if tolerance is None else tolerance:.3g} "
+            f"r ({how})"
             + (f"; centring within {centring:.3g} r" if centring is not None else "") + ".\n\n")
 
 

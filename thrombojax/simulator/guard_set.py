@@ -73,6 +73,10 @@ class GuardSet:
         stiffness, tolerance: coherence settings (tolerance in scaled coordinates).
         keep_centroid: coherence leaves the clot's centroid where the step put it
             (:func:`~thrombojax.simulator.guards.coherence`'s ``keep_centroid``).
+        max_stretch, stretching: coherence's copy of the rest shape may stretch, without a
+            change of volume, by principal stretches within ``[1 / max_stretch, max_stretch]``
+            (:func:`~thrombojax.simulator.guards.coherence`'s ``max_stretch``), when
+            ``stretching``; else it is rigid.
         centring: apply :func:`~thrombojax.simulator.centring.centre_clot` first.
         centre_tolerance, centre_lengths: its tolerance and ``(axis_radius, slab, reach)``
             (scaled coordinates).
@@ -90,6 +94,8 @@ class GuardSet:
     stiffness: jax.Array | float = 1.0
     tolerance: jax.Array | float = 0.0
     keep_centroid: bool = struct.field(pytree_node=False, default=False)
+    max_stretch: jax.Array | float = 1.0
+    stretching: bool = struct.field(pytree_node=False, default=False)
     centring: bool = struct.field(pytree_node=False, default=False)
     centre_tolerance: jax.Array | float = 0.0
     centre_lengths: tuple[float, float, float] = struct.field(pytree_node=False,
@@ -135,7 +141,8 @@ class GuardSet:
             corrections["centring"] = jnp.zeros(n, x.dtype).at[idx].set(moved)
         if self.coherence:
             xc, moved = coherence(xc, self.x_ref, ones, stiffness=self.stiffness,
-                                  tolerance=self.tolerance, keep_centroid=self.keep_centroid)
+                                  tolerance=self.tolerance, keep_centroid=self.keep_centroid,
+                                  max_stretch=self.max_stretch if self.stretching else None)
             corrections["coherence"] = jnp.zeros(n, x.dtype).at[idx].set(moved)
         if self.containment:
             xc, moved = contain(xc, ones, self.wall, margin=self.margin, tol=self.tol)
@@ -158,6 +165,7 @@ def build_guards(
     stiffness: float = 1.0,
     tolerance_r: float = FIXED_COHERENCE_R,
     keep_centroid: bool = False,
+    max_stretch: float | None = None,
     centring_r: float | None = None,
     pace: float | None = None,
 ) -> GuardSet:
@@ -177,6 +185,8 @@ def build_guards(
         margin_r, tol_r: containment margin and tolerance, in vessel radii.
         stiffness: coherence stiffness in [0, 1]. tolerance_r: coherence tolerance in radii.
         keep_centroid: coherence leaves the clot's centroid where the step put it.
+        max_stretch: coherence's copy of the rest shape may stretch, without a change of
+            volume, up to this principal stretch (>= 1); None: a rigid copy.
         centring_r: the centring guard's tolerance in radii (>= 0; the clot's centroid may lie
             this far from the middle of the vessel's cross-section); None: no centring.
         pace: the factor on every clot node's learned step before the guards (> 0; 1 leaves the
@@ -188,6 +198,9 @@ def build_guards(
         raise ConfigError(f"guards: the vessel radius must be > 0 (scaled units), got {radius}")
     if not 0.0 <= stiffness <= 1.0:
         raise ConfigError(f"guards: coherence stiffness must be in [0, 1], got {stiffness}")
+    if max_stretch is not None and not (np.isfinite(max_stretch) and max_stretch >= 1):
+        raise ConfigError(f"guards: the coherence guard's max_stretch must be a number >= 1, "
+                          f"got {max_stretch}")
     if centring_r is not None and not centring_r >= 0:
         raise ConfigError(f"guards: the centring tolerance must be >= 0 radii, got {centring_r}")
     if pace is not None and not (np.isfinite(pace) and pace > 0):
@@ -204,6 +217,7 @@ def build_guards(
         containment=bool(containment), margin=float(margin_r * radius),
         tol=float(tol_r * radius), coherence=bool(coherence), stiffness=float(stiffness),
         tolerance=float(tolerance_r * radius), keep_centroid=bool(keep_centroid),
+        max_stretch=float(max_stretch or 1.0), stretching=max_stretch is not None,
         centring=centring_r is not None,
         centre_tolerance=float((centring_r or 0.0) * radius),
         centre_lengths=centre_lengths(radius),

@@ -11,7 +11,11 @@ record per step how much the guards had to fix (a large correction means the mod
   matching"): the best rigid fit of the rest shape ``x_ref`` to the current clot (centroids and
   the rotation of the polar decomposition of ``sum (x - c)(x_ref - c_ref)^T``, by SVD with the
   reflection removed), and each node is pulled by ``stiffness`` toward that rigid copy for the
-  part of its deviation beyond ``tolerance``.
+  part of its deviation beyond ``tolerance``. With ``max_stretch`` the copy may also deform
+  (Mueller et al.'s linear deformation mode): the best affine fit's stretch, made
+  volume-preserving and with every principal stretch limited to ``[1 / max_stretch,
+  max_stretch]``, so a clot that shortens and widens as it leaves the vessel is not pulled back
+  to its shape inside it.
 * :func:`relax_edges`: edge-length relaxation on ``clot_cells`` edges: edges stretched or
   compressed beyond ``max_strain`` are brought back to the limit (Jacobi iterations, both ends
   move equally, moves of a node averaged over its violated edges).
@@ -68,18 +72,39 @@ def contain(
     return x_new, correction
 
 
-def _rigid_fit(x, x_ref, w):
-    """Centroids and rotation ``R`` minimising ``sum w |R (x_ref - c_ref) + c - x|^2``."""
+def _centroids(x, x_ref, w):
+    """The weighted centroids ``c`` of ``x`` and ``c_ref`` of ``x_ref``."""
     total = jnp.maximum(jnp.sum(w), 1.0)
-    c = jnp.sum(w[:, None] * x, axis=0) / total
-    c_ref = jnp.sum(w[:, None] * x_ref, axis=0) / total
+    return (jnp.sum(w[:, None] * x, axis=0) / total,
+            jnp.sum(w[:, None] * x_ref, axis=0) / total)
+
+
+def _rigid_rotation(x, x_ref, w, c, c_ref):
+    """The rotation ``R`` minimising ``sum w |R (x_ref - c_ref) + c - x|^2``."""
     p, q = (x - c) * w[:, None], (x_ref - c_ref) * w[:, None]
     a = p.T @ q  # [3, 3] sum_i p_i q_i^T
     u, _, vt = jnp.linalg.svd(a)
     d = jnp.sign(jnp.linalg.det(u @ vt))
     d = jnp.where(d == 0, 1.0, d)
-    rot = u @ jnp.diag(jnp.array([1.0, 1.0, 1.0], x.dtype).at[2].set(d)) @ vt
-    return c, c_ref, rot
+    return u @ jnp.diag(jnp.array([1.0, 1.0, 1.0], x.dtype).at[2].set(d)) @ vt
+
+
+def _bounded_affine(x, x_ref, w, c, c_ref, max_stretch):
+    """``[3, 3]`` map ``R S``: the rotation ``R`` and stretch ``S`` of the polar decomposition of
+    the least-squares affine fit ``A = A_pq A_qq^-1`` of the rest shape onto the clot (Mueller
+    et al. 2005, section 4.2), with ``S``'s principal stretches scaled to keep the volume and
+    limited to ``[1 / max_stretch, max_stretch]``."""
+    p, q = (x - c) * w[:, None], (x_ref - c_ref) * w[:, None]
+    a_pq, a_qq = p.T @ q, q.T @ q
+    eps = 1e-6 * jnp.maximum(jnp.trace(a_qq), 1e-30)
+    affine = jnp.linalg.solve(a_qq + eps * jnp.eye(3, dtype=x.dtype), a_pq.T).T
+    u, sig, vt = jnp.linalg.svd(affine)
+    d = jnp.sign(jnp.linalg.det(u @ vt))
+    flip = jnp.array([1.0, 1.0, 1.0], x.dtype).at[2].set(jnp.where(d == 0, 1.0, d))
+    lam = jnp.maximum(sig * flip, 1.0 / max_stretch)  # no collapse or inversion
+    lam = lam / jnp.prod(lam) ** (1.0 / 3.0)
+    lam = jnp.clip(lam, 1.0 / max_stretch, max_stretch)
+    return (u * (flip * lam)) @ vt
 
 
 def coherence(
@@ -90,13 +115,17 @@ def coherence(
     stiffness: float,
     tolerance: float = 0.0,
     keep_centroid: bool = False,
+    max_stretch: jax.Array | float | None = None,
 ) -> tuple[jax.Array, jax.Array]:
     """Shape matching of the clot to its rest shape. Jittable, vmappable.
 
     Each clot node is pulled toward its place ``g_i = R (x_ref_i - c_ref) + c`` in the best rigid
     copy of the rest shape: ``x_i += stiffness * (e_i - clip(e_i, tolerance))`` with deviation
     ``e_i = g_i - x_i`` and ``clip`` shortening a vector to at most ``tolerance``. A rigidly
-    moved clot is left unchanged; nodes outside ``clot_mask`` are untouched. Meant for the
+    moved clot is left unchanged; nodes outside ``clot_mask`` are untouched. With
+    ``max_stretch`` the copy is ``g_i = R S (x_ref_i - c_ref) + c`` with ``S`` the clot's own
+    stretch from its affine fit, volume-preserving and bounded (a clot so stretched within
+    the bounds and without a change of volume, is left unchanged too). Meant for the
     rollout, not for gradients: the SVD's derivative is undefined where singular values repeat.
 
     Args:
@@ -111,12 +140,18 @@ def coherence(
             Mueller et al.'s shape matching, whose internal forces conserve momentum); with
             one, only the nodes beyond it move, and a clot stretched on one side (its front
             leaving the vessel first) is pulled back along its motion.
+        max_stretch: ``None`` (static): the rigid copy. A number ``>= 1`` (traceable): the
+            largest principal stretch (and the inverse of the smallest) the copy may take;
+            1 gives a rigid copy again (turned by the affine fit's rotation, which may differ
+            a little from the rigid fit's when the clot is deformed).
     Returns:
         ``(x_new [N, 3], correction [N])``.
     """
     w = clot_mask.astype(x.dtype)
-    c, c_ref, rot = _rigid_fit(x, x_ref, w)
-    goal = (x_ref - c_ref) @ rot.T + c
+    c, c_ref = _centroids(x, x_ref, w)
+    linear = (_rigid_rotation(x, x_ref, w, c, c_ref) if max_stretch is None
+              else _bounded_affine(x, x_ref, w, c, c_ref, max_stretch))
+    goal = (x_ref - c_ref) @ linear.T + c
     dev = goal - x
     norm = safe_norm(dev, keepdims=True)
     excess = dev * jnp.maximum(1.0 - tolerance / jnp.maximum(norm, 1e-30), 0.0)
