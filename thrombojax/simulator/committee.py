@@ -50,9 +50,9 @@ def _committee_impl(step, params, stats, x0_prev, x0, node_type, mask, guards, n
         preds = jax.vmap(lambda p: step(p, stats, prev, cur, node_type, mask,
                                         context=context).positions)(params)
         mean, spread = ensemble_stats(preds)
-        nxt, corrections = (mean, {}) if guards is None else guards.after_step(cur, mean)
-        return (step.shift(prev, cur), nxt), (preds, nxt, jnp.where(clot, spread, 0.0),
-                                              corrections)
+        new_prev, nxt, corrections = ((step.shift(prev, cur), mean, {}) if guards is None
+                                      else guards.advance(step.shift, prev, cur, mean))
+        return (new_prev, nxt), (preds, nxt, jnp.where(clot, spread, 0.0), corrections)
 
     _, (preds, positions, spread, corrections) = jax.lax.scan(
         body, (x0_prev, x0), None, length=n_steps)

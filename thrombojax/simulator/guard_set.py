@@ -30,8 +30,8 @@ whose clot runs along the vessel too fast or too slow can be slowed down or sped
 (:mod:`thrombojax.eval.pace_fit` fits it on validation simulations; measured on ClotEntry, a
 pace fitted on one vessel does not carry over to others). It acts on the step of one state (a
 member's own, or a committee's mean), never on an ensemble's averaged output, so
-:meth:`GuardSet.apply` does not include it: the rollouts call :meth:`GuardSet.after_step`
-(pace, then the guards).
+:meth:`GuardSet.apply` does not include it: the rollouts call :meth:`GuardSet.advance` (pace,
+then the guards, and the previous frame the next step reads).
 """
 
 from __future__ import annotations
@@ -73,6 +73,10 @@ class GuardSet:
         stiffness, tolerance: coherence settings (tolerance in scaled coordinates).
         keep_centroid: coherence leaves the clot's centroid where the step put it
             (:func:`~thrombojax.simulator.guards.coherence`'s ``keep_centroid``).
+        keep_velocity: the step after reads the clot's velocity from before coherence (the
+            previous frame moves with coherence's correction, :meth:`advance`): coherence
+            corrects where the clot is, not how fast its nodes move; containment's
+            correction still changes the velocity.
         max_stretch, stretching: coherence's copy of the rest shape may stretch, without a
             change of volume, by principal stretches within ``[1 / max_stretch, max_stretch]``
             (:func:`~thrombojax.simulator.guards.coherence`'s ``max_stretch``), when
@@ -94,6 +98,7 @@ class GuardSet:
     stiffness: jax.Array | float = 1.0
     tolerance: jax.Array | float = 0.0
     keep_centroid: bool = struct.field(pytree_node=False, default=False)
+    keep_velocity: bool = struct.field(pytree_node=False, default=False)
     max_stretch: jax.Array | float = 1.0
     stretching: bool = struct.field(pytree_node=False, default=False)
     centring: bool = struct.field(pytree_node=False, default=False)
@@ -116,38 +121,53 @@ class GuardSet:
         return (nxt.at[idx].set(cur[idx] + self.pace * step),
                 {"pace": jnp.zeros(nxt.shape[0], nxt.dtype).at[idx].set(shift)})
 
-    def after_step(self, cur: jax.Array, nxt: jax.Array
-                   ) -> tuple[jax.Array, dict[str, jax.Array]]:
-        """What a rollout does after the learned step ``cur -> nxt`` of one state:
-        :meth:`pace_step`, then :meth:`apply`; their corrections together."""
+    def advance(self, shift, prev: jax.Array, cur: jax.Array, nxt: jax.Array
+                ) -> tuple[jax.Array, jax.Array, dict[str, jax.Array]]:
+        """What a rollout does after the learned step ``cur -> nxt`` (``[N, 3]`` each) of one
+        state: :meth:`pace_step`, then :meth:`apply`. Returns ``(prev', nxt', corrections)``:
+        the next state's history ``prev' = shift(prev, cur)`` (``shift``: the step's
+        :meth:`~thrombojax.simulator.step.LearnedStep.shift`), or with ``keep_velocity``
+        ``shift(prev, cur + m)``, ``m`` coherence's move of every node, so that ``nxt' - prev'``
+        keeps the velocity coherence took out; the corrected ``nxt'``; pace's and the guards'
+        corrections together."""
         nxt, paced = self.pace_step(cur, nxt)
-        nxt, guarded = self.apply(nxt)
-        return nxt, paced | guarded
+        nxt, guarded, moved = self._apply(nxt)
+        return shift(prev, cur if moved is None else cur + moved), nxt, paced | guarded
 
     def apply(self, x: jax.Array) -> tuple[jax.Array, dict[str, jax.Array]]:
         """Correct one frame ``x [N, 3]``; returns ``(x, {guard name: correction [N]})``.
 
         Nodes outside ``clot_index`` are never moved (their correction is 0).
         """
+        x, corrections, _ = self._apply(x)
+        return x, corrections
+
+    def _apply(self, x):
+        """:meth:`apply`, and coherence's move of every node ``[N, 3]`` when ``keep_velocity``
+        (else None)."""
         n = x.shape[0]
+        moved = None
         idx = self.clot_index
         xc = x[idx]
         ones = jnp.ones(idx.shape[0], bool)
         corrections = {}
         if self.centring:
             axis_radius, slab, reach = self.centre_lengths
-            xc, moved = centre_clot(xc, self.wall, tolerance=self.centre_tolerance,
-                                    axis_radius=axis_radius, slab=slab, reach=reach)
-            corrections["centring"] = jnp.zeros(n, x.dtype).at[idx].set(moved)
+            xc, shifted = centre_clot(xc, self.wall, tolerance=self.centre_tolerance,
+                                      axis_radius=axis_radius, slab=slab, reach=reach)
+            corrections["centring"] = jnp.zeros(n, x.dtype).at[idx].set(shifted)
         if self.coherence:
-            xc, moved = coherence(xc, self.x_ref, ones, stiffness=self.stiffness,
-                                  tolerance=self.tolerance, keep_centroid=self.keep_centroid,
-                                  max_stretch=self.max_stretch if self.stretching else None)
-            corrections["coherence"] = jnp.zeros(n, x.dtype).at[idx].set(moved)
+            before = xc
+            xc, shifted = coherence(xc, self.x_ref, ones, stiffness=self.stiffness,
+                                    tolerance=self.tolerance, keep_centroid=self.keep_centroid,
+                                    max_stretch=self.max_stretch if self.stretching else None)
+            corrections["coherence"] = jnp.zeros(n, x.dtype).at[idx].set(shifted)
+            if self.keep_velocity:
+                moved = jnp.zeros_like(x).at[idx].set(xc - before)
         if self.containment:
-            xc, moved = contain(xc, ones, self.wall, margin=self.margin, tol=self.tol)
-            corrections["containment"] = jnp.zeros(n, x.dtype).at[idx].set(moved)
-        return x.at[idx].set(xc), corrections
+            xc, shifted = contain(xc, ones, self.wall, margin=self.margin, tol=self.tol)
+            corrections["containment"] = jnp.zeros(n, x.dtype).at[idx].set(shifted)
+        return x.at[idx].set(xc), corrections, moved
 
 
 def build_guards(
@@ -165,6 +185,7 @@ def build_guards(
     stiffness: float = 1.0,
     tolerance_r: float = FIXED_COHERENCE_R,
     keep_centroid: bool = False,
+    keep_velocity: bool = False,
     max_stretch: float | None = None,
     centring_r: float | None = None,
     pace: float | None = None,
@@ -185,6 +206,8 @@ def build_guards(
         margin_r, tol_r: containment margin and tolerance, in vessel radii.
         stiffness: coherence stiffness in [0, 1]. tolerance_r: coherence tolerance in radii.
         keep_centroid: coherence leaves the clot's centroid where the step put it.
+        keep_velocity: the step after reads the velocity from before coherence
+            (:meth:`GuardSet.advance`).
         max_stretch: coherence's copy of the rest shape may stretch, without a change of
             volume, up to this principal stretch (>= 1); None: a rigid copy.
         centring_r: the centring guard's tolerance in radii (>= 0; the clot's centroid may lie
@@ -217,6 +240,7 @@ def build_guards(
         containment=bool(containment), margin=float(margin_r * radius),
         tol=float(tol_r * radius), coherence=bool(coherence), stiffness=float(stiffness),
         tolerance=float(tolerance_r * radius), keep_centroid=bool(keep_centroid),
+        keep_velocity=bool(keep_velocity),
         max_stretch=float(max_stretch or 1.0), stretching=max_stretch is not None,
         centring=centring_r is not None,
         centre_tolerance=float((centring_r or 0.0) * radius),

@@ -102,10 +102,9 @@ def _scan(step, params, stats, x_prev, x_cur, node_type, mask, n_steps, *, train
         key = None if rng is None else jax.random.fold_in(rng, i)
         out = step(params, stats, prev, cur, node_type, mask, train=train, rng=key,
                    context=context)
-        nxt, corrections = ((out.positions, {}) if guards is None
-                            else guards.after_step(cur, out.positions))
-        return (step.shift(prev, cur), nxt, overflow | out.overflow), (nxt, out.output,
-                                                                      corrections)
+        new_prev, nxt, corrections = ((step.shift(prev, cur), out.positions, {}) if guards is None
+                                      else guards.advance(step.shift, prev, cur, out.positions))
+        return (new_prev, nxt, overflow | out.overflow), (nxt, out.output, corrections)
 
     (_, _, overflow), (positions, outputs, corrections) = jax.lax.scan(
         body, (x_prev, x_cur, jnp.zeros((), bool)), jnp.arange(n_steps))
