@@ -120,6 +120,20 @@ def provenance(radius: float) -> str:
             f"jax {jax.__version__}, numpy {np.__version__}; load {os.getloadavg()[0]:.1f}.")
 
 
+def open_split(args) -> tuple:
+    """``(dataset, held-out names, validation names)`` of the parsed ``data``, ``--held-out``
+    and ``--validation`` arguments, once ``--out`` may be written (``--force``); every name is
+    checked to be in the dataset."""
+    check_targets([args.out], force=args.force)
+    ds = open_dataset(args.data)
+    held = [s for s in args.held_out.split(",") if s]
+    validation = [s for s in args.validation.split(",") if s]
+    missing = [s for s in held + validation if s not in ds]
+    if missing:
+        raise ConfigError(f"{args.data}: no simulation {', '.join(missing)}")
+    return ds, held, validation
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("data", type=pathlib.Path, help="the BendVessel dataset (.h5)")
@@ -132,13 +146,7 @@ def main() -> None:
     ap.add_argument("--out", type=pathlib.Path, required=True)
     ap.add_argument("--force", action="store_true", help="replace an existing --out")
     args = ap.parse_args()
-    check_targets([args.out], force=args.force)
-    ds = open_dataset(args.data)
-    held = [s for s in args.held_out.split(",") if s]
-    validation = [s for s in args.validation.split(",") if s]
-    missing = [s for s in held + validation if s not in ds]
-    if missing:
-        raise ConfigError(f"{args.data}: no simulation {', '.join(missing)}")
+    ds, held, validation = open_split(args)
     radius = float(vessel_radius(ds))
     rows = [measure(ds, name, radius) for name in ds.names]
     no_exit = [r["name"] for r in rows if r["n_exit"] == 0]

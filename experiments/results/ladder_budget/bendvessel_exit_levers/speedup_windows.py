@@ -26,15 +26,13 @@ import jax
 import numpy as np
 
 from thrombojax.data.radius import vessel_radius
-from thrombojax.errors import ConfigError
 from thrombojax.eval.metrics import clot_centroids
-from thrombojax.io.hdf5 import open_dataset
-from thrombojax.io.outputs import atomic_write_text, check_targets
+from thrombojax.io.outputs import atomic_write_text
 from thrombojax.train.speedup import speedup_window_weight
 from thrombojax.types import clot_mask
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "bendvessel_exit"))
-from exit_truth import STEADY_FRAMES, exit_of, provenance  # noqa: E402
+from exit_truth import STEADY_FRAMES, exit_of, open_split, provenance  # noqa: E402
 
 
 @functools.partial(jax.jit, static_argnames="fraction")
@@ -67,12 +65,8 @@ def main() -> None:
     ap.add_argument("--out", type=pathlib.Path, required=True)
     ap.add_argument("--force", action="store_true", help="replace an existing --out")
     args = ap.parse_args()
-    check_targets([args.out], force=args.force)
-    ds = open_dataset(args.data)
-    left_out = [s for s in (args.held_out + "," + args.validation).split(",") if s]
-    missing = [s for s in left_out if s not in ds]
-    if missing:
-        raise ConfigError(f"{args.data}: no simulation {', '.join(missing)}")
+    ds, held, validation = open_split(args)
+    left_out = held + validation
     radius = float(vessel_radius(ds))
     rows = [count(ds, n, radius, args.fraction) for n in ds.names if n not in left_out]
     lines = ["| simulation | weighted windows (t) | exit from frame step | start | exit | "
