@@ -120,6 +120,13 @@ def provenance(radius: float) -> str:
             f"jax {jax.__version__}, numpy {np.__version__}; load {os.getloadavg()[0]:.1f}.")
 
 
+def write_table(out: pathlib.Path, lines: list[str], radius: float) -> None:
+    """Write ``lines`` and the :func:`provenance` line to ``out`` atomically, and print them."""
+    lines = [*lines, "\n" + provenance(radius)]
+    atomic_write_text(out, "\n".join(lines) + "\n")
+    print("\n".join(lines))
+
+
 def open_split(args) -> tuple:
     """``(dataset, held-out names, validation names)`` of the parsed ``data``, ``--held-out``
     and ``--validation`` arguments, once ``--out`` may be written (``--force``); every name is
@@ -183,9 +190,7 @@ def main() -> None:
         lines.append(f"\n`--speed-noise-steady {args.steady:g}` leaves {kept} of the {total} "
                      f"training windows un-noised ({100 * kept / total:.1f} %; the {len(training)}"
                      f" simulations neither held out nor validation, clean frames).")
-    lines.append("\n" + provenance(radius))
-    atomic_write_text(args.out, "\n".join(lines) + "\n")
-    print("\n".join(lines))
+    write_table(args.out, lines, radius)
 
 
 if __name__ == "__main__":

@@ -27,12 +27,11 @@ import numpy as np
 
 from thrombojax.data.radius import vessel_radius
 from thrombojax.eval.metrics import clot_centroids
-from thrombojax.io.outputs import atomic_write_text
 from thrombojax.train.speedup import speedup_window_weight
 from thrombojax.types import clot_mask
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "bendvessel_exit"))
-from exit_truth import STEADY_FRAMES, exit_of, open_split, provenance  # noqa: E402
+from exit_truth import STEADY_FRAMES, exit_of, open_split, write_table  # noqa: E402
 
 
 @functools.partial(jax.jit, static_argnames="fraction")
@@ -84,9 +83,7 @@ def main() -> None:
                  f"{exit_} in the exit, {weighted - start - exit_} elsewhere. With "
                  f"`--speedup-weight {args.weight:g}` they carry {100 * mass:.0f} % of the loss, "
                  f"the exit's {100 * exit_mass:.0f} % (before: {100 * exit_ / total:.0f} %).")
-    lines.append("\n" + provenance(radius))
-    atomic_write_text(args.out, "\n".join(lines) + "\n")
-    print("\n".join(lines))
+    write_table(args.out, lines, radius)
 
 
 if __name__ == "__main__":

@@ -33,11 +33,10 @@ from thrombojax import study
 from thrombojax.data.radius import vessel_radius
 from thrombojax.eval.coherence_fit import clot_deviations, fit_coherence
 from thrombojax.eval.metrics import clot_centroids
-from thrombojax.io.outputs import atomic_write_text
 from thrombojax.types import clot_mask
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "bendvessel_exit"))
-from exit_truth import exit_of, open_split, provenance  # noqa: E402
+from exit_truth import exit_of, open_split, write_table  # noqa: E402
 
 
 def along_motion(pos: np.ndarray, clot: np.ndarray, start: int) -> float:
@@ -98,9 +97,7 @@ def main() -> None:
                  f"The true clot's stretch along its motion in the last frame: "
                  f"{values.min():.2f}-{values.max():.2f} (median {np.median(values):.2f}; "
                  "below 1: it shortens along the vessel and widens as it leaves it).")
-    lines.append("\n" + provenance(radius))
-    atomic_write_text(args.out, "\n".join(lines) + "\n")
-    print("\n".join(lines))
+    write_table(args.out, lines, radius)
 
 
 if __name__ == "__main__":
