@@ -79,14 +79,17 @@ def _centroids(x, x_ref, w):
             jnp.sum(w[:, None] * x_ref, axis=0) / total)
 
 
+def _proper(u, vt):
+    """``[3]`` signs that make ``u @ diag(signs) @ vt`` a rotation (the reflection removed)."""
+    d = jnp.sign(jnp.linalg.det(u @ vt))
+    return jnp.ones(3, u.dtype).at[2].set(jnp.where(d == 0, 1.0, d))
+
+
 def _rigid_rotation(x, x_ref, w, c, c_ref):
     """The rotation ``R`` minimising ``sum w |R (x_ref - c_ref) + c - x|^2``."""
     p, q = (x - c) * w[:, None], (x_ref - c_ref) * w[:, None]
-    a = p.T @ q  # [3, 3] sum_i p_i q_i^T
-    u, _, vt = jnp.linalg.svd(a)
-    d = jnp.sign(jnp.linalg.det(u @ vt))
-    d = jnp.where(d == 0, 1.0, d)
-    return u @ jnp.diag(jnp.array([1.0, 1.0, 1.0], x.dtype).at[2].set(d)) @ vt
+    u, _, vt = jnp.linalg.svd(p.T @ q)  # [3, 3] sum_i p_i q_i^T
+    return (u * _proper(u, vt)) @ vt
 
 
 def _bounded_affine(x, x_ref, w, c, c_ref, max_stretch):
@@ -99,8 +102,7 @@ def _bounded_affine(x, x_ref, w, c, c_ref, max_stretch):
     eps = 1e-6 * jnp.maximum(jnp.trace(a_qq), 1e-30)
     affine = jnp.linalg.solve(a_qq + eps * jnp.eye(3, dtype=x.dtype), a_pq.T).T
     u, sig, vt = jnp.linalg.svd(affine)
-    d = jnp.sign(jnp.linalg.det(u @ vt))
-    flip = jnp.array([1.0, 1.0, 1.0], x.dtype).at[2].set(jnp.where(d == 0, 1.0, d))
+    flip = _proper(u, vt)
     lam = jnp.maximum(sig * flip, 1.0 / max_stretch)  # no collapse or inversion
     lam = lam / jnp.prod(lam) ** (1.0 / 3.0)
     lam = jnp.clip(lam, 1.0 / max_stretch, max_stretch)

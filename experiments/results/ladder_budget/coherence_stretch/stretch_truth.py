@@ -27,12 +27,14 @@ import argparse
 import pathlib
 import sys
 
+import jax.numpy as jnp
 import numpy as np
 
 from thrombojax import study
 from thrombojax.data.radius import vessel_radius
 from thrombojax.eval.coherence_fit import clot_deviations, fit_coherence
 from thrombojax.eval.metrics import clot_centroids
+from thrombojax.simulator.guards import coherence
 from thrombojax.types import clot_mask
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "bendvessel_exit"))
@@ -42,11 +44,12 @@ from exit_truth import exit_of, open_split, write_table  # noqa: E402
 def along_motion(pos: np.ndarray, clot: np.ndarray, start: int) -> float:
     """The last frame's stretch along the centroid's last step, against the start frame turned
     rigidly onto it (least squares along that direction)."""
-    x, ref = pos[-1][clot].astype(np.float64), pos[start][clot].astype(np.float64)
-    p, q = x - x.mean(0), ref - ref.mean(0)
-    u, _, vt = np.linalg.svd(p.T @ q)
-    rot = u @ np.diag([1.0, 1.0, np.sign(np.linalg.det(u @ vt)) or 1.0]) @ vt
-    q = q @ rot.T
+    x, ref = pos[-1][clot], pos[start][clot]
+    # the coherence guard's own rigid copy (stiffness 1, no tolerance: the copy itself)
+    copy, _ = coherence(jnp.asarray(x), jnp.asarray(ref), jnp.ones(len(x), bool),
+                        stiffness=1.0, tolerance=0.0)
+    copy = np.asarray(copy, np.float64)
+    p, q = x - x.mean(0), copy - copy.mean(0)
     m = x.mean(0) - pos[-2][clot].mean(0)
     m = m / np.linalg.norm(m)
     return float((p @ m) @ (q @ m) / ((q @ m) @ (q @ m)))
