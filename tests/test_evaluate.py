@@ -326,6 +326,33 @@ def test_rollout_coherence_tolerance_reaches_the_guard(tiny_run, capsys):
     assert not (root / "stretch_alone").exists() and not (root / "stretch_low").exists()
 
 
+def test_rollout_keep_wall_velocity_reaches_the_guard(tiny_run, capsys, monkeypatch):
+    """--keep-wall-velocity builds the guards with ``keep_velocity_wall`` (off by default),
+    records it and names it in rollout.md; without the guards it is refused."""
+    import thrombojax.eval.rollouts as rollouts
+
+    data, run, root = tiny_run
+    common = ["rollout", "--run", str(run), "--dataset", str(data), "--sim", "sim_1",
+              "--no-gif", "--quiet", "--coherence-tolerance", "1"]
+    built, real = [], rollouts.build_guards
+    monkeypatch.setattr(rollouts, "build_guards",
+                        lambda *a, **k: built.append(k["keep_velocity_wall"]) or real(*a, **k))
+    for label, extra in (("plain", []), ("kept", ["--keep-wall-velocity"])):
+        assert main([*common, "--out", str(root / f"wallvel_{label}"), *extra]) == 0
+    assert built == [False, True]
+    plain, kept = (json.loads((root / f"wallvel_{x}" / "rollout.json").read_text())
+                   for x in ("plain", "kept"))
+    assert plain["keep_wall_velocity"] is False and kept["keep_wall_velocity"] is True
+    said = "the step after containment reads the velocity from before it"
+    assert said in (root / "wallvel_kept" / "rollout.md").read_text()
+    assert said not in (root / "wallvel_plain" / "rollout.md").read_text()
+    capsys.readouterr()
+    assert main([*common[:-2], "--out", str(root / "wallvel_alone"), "--no-guards",
+                 "--keep-wall-velocity"]) == 2
+    assert "--keep-wall-velocity with --no-guards" in capsys.readouterr().err
+    assert not (root / "wallvel_alone").exists()
+
+
 def test_rollout_of_an_ensemble_reports_its_spread(tiny_run):
     """An ensemble folder rolls out as one program: mean prediction, spread beside the error."""
     from thrombojax.train.ensemble import train_ensemble

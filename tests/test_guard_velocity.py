@@ -68,3 +68,28 @@ def test_a_kept_velocity_goes_on_stretching_the_clot_into_the_guard():
         np.testing.assert_allclose(np.asarray(ens.mean), np.asarray(traj), atol=1e-5)
         np.testing.assert_allclose(np.asarray(com.mean), np.asarray(traj), atol=1e-5)
     assert last[False] < 1e-4 < 1e-3 < last[True], last
+
+
+def test_keep_velocity_wall_keeps_the_velocity_containment_took_out():
+    """A step that carries the clot's nodes 0.8 away from the tube's axis puts some through the
+    wall: containment puts them back either way; with ``keep_velocity_wall`` the next step
+    still reads the step's velocity, without it the velocity that containment left."""
+    x0, node_type = straight_tube()
+    clot = node_type == NodeType.CLOT
+    radial = x0 * [0.0, 1.0, 1.0]
+    radial /= np.linalg.norm(radial, axis=-1, keepdims=True) + 1e-6
+    nxt = np.where(clot[:, None], x0 + 0.8 * radial, x0).astype(np.float32)
+    for keep in (False, True):
+        guards = build_guards(x0, node_type, x0, node_type, radius=1.0, coherence=False,
+                              keep_velocity_wall=keep)
+        assert guards.keep_velocity_wall is keep
+        prev2, nxt2, corr = jax.jit(lambda p, c, n, g=guards: g.advance(
+            lambda a, b: b, p, c, n))(jnp.asarray(x0), jnp.asarray(x0), jnp.asarray(nxt))
+        prev2, nxt2 = np.asarray(prev2), np.asarray(nxt2)
+        moved = np.asarray(corr["containment"])
+        assert (moved[clot] > 1e-3).sum() > 3  # some nodes were put back inside
+        assert np.linalg.norm(nxt2[clot] * [0, 1, 1], axis=-1).max() < 1.03  # the wall's slack
+        if keep:
+            np.testing.assert_allclose(nxt2 - prev2, nxt - x0, atol=1e-6)
+        else:
+            np.testing.assert_array_equal(prev2, x0)

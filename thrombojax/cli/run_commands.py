@@ -114,6 +114,10 @@ def _add_rollout(sub) -> None:
                    "clot that shortens and widens as it leaves the vessel is not pulled back to "
                    "its shape inside it; 'auto' tolerance is then fitted to that copy (default: "
                    "a rigid copy)")
+    p.add_argument("--keep-wall-velocity", action="store_true",
+                   help="the step after containment reads the clot's velocity from before it: a "
+                   "node put back inside the vessel keeps moving as the learned step moved it, "
+                   "instead of losing the motion containment took out (default: it loses it)")
     p.add_argument("--centre-pull", type=NN_FLOAT, metavar="K", help="(a run trained with "
                    "--follow-axis) the prior's centring pull at strength K in (0, 1], set at "
                    "rollout time, in the single steps too (default: the run's own, if any)")
@@ -137,7 +141,7 @@ def _run_rollout(args) -> int:
                       gif=not args.no_gif, force=args.force, progress=not args.quiet,
                       guards=not args.no_guards, rotations=args.rotations, centring_r=args.centring,
                       coherence_r=args.coherence, coherence_stretch=args.coherence_stretch,
-                      centre_pull=args.centre_pull,
+                      keep_wall_velocity=args.keep_wall_velocity, centre_pull=args.centre_pull,
                       centre_tolerance=args.centre_tolerance)
     print(f"simulations: {res['selection']['how']}")
     print(res["table"], end="")

@@ -185,6 +185,7 @@ def rollout_run(
     centring_r: float | str | None = None,
     coherence_r: float | str | None = None,
     coherence_stretch: float | None = None,
+    keep_wall_velocity: bool = False,
     centre_pull: float | None = None,
     centre_tolerance: float | str | None = None,
 ) -> dict:
@@ -235,6 +236,8 @@ def rollout_run(
             stretch, without a change of volume, up to this principal stretch (>= 1;
             :func:`thrombojax.simulator.guards.coherence`'s ``max_stretch``; ``None``, the
             default: a rigid copy); ``"auto"`` then fits the tolerance to that copy.
+        keep_wall_velocity: with the guards, the step after containment reads the velocity
+            from before it (``build_guards``' ``keep_velocity_wall``; recorded).
         centre_pull: the vessel-following prior's centring pull at this strength in (0, 1]
             (a run trained with ``--follow-axis``), at rollout time, in the single steps too
             (:mod:`thrombojax.eval.rollout_pull`); ``None``: the run's own (trained) pull.
@@ -253,6 +256,9 @@ def rollout_run(
         if value is not None and not guards:
             raise ConfigError(f"rollout: the coherence {what} is a guard's; it cannot run "
                               f"without the guards ({flag} with --no-guards)")
+    if keep_wall_velocity and not guards:
+        raise ConfigError("rollout: the velocity kept through containment is a guard's; it "
+                          "cannot run without the guards (--keep-wall-velocity with --no-guards)")
     ensemble = (pathlib.Path(run_dir) / "ensemble.json").is_file()
     if ensemble:
         members = load_ensemble(run_dir, which=which)
@@ -307,7 +313,8 @@ def rollout_run(
                                  ensemble=n_members > 1 or bool(rotations),
                                  guard_radius=1.0 / units.factor if guards else None,
                                  centring_r=centring_r, coherence_r=coherence_r,
-                                 coherence_stretch=coherence_stretch)
+                                 coherence_stretch=coherence_stretch,
+                                 keep_wall_velocity=keep_wall_velocity)
         check_finite({"predicted positions": float(np.sum(res.pred))},
                      f"{run_dir}: checkpoint '{which}' on simulation '{name}'")
         exit_at = simulation_exit_frame(pos, node_type, sim.wall_cells)
@@ -329,7 +336,8 @@ def rollout_run(
               "skip_frames": skip_frames, "seed": seed, "units": units.to_dict(),
               "guards": bool(guards), "centring_r": centring_r, "centring_fit": centring_fit,
               "coherence_r": coherence_r, "coherence_fit": coherence_fit,
-              "coherence_stretch": coherence_stretch, "centre_pull": pull,
+              "coherence_stretch": coherence_stretch,
+              "keep_wall_velocity": bool(keep_wall_velocity), "centre_pull": pull,
               "checkpoint": which, "ensemble_members": n_members, "rotations": int(rotations),
               "phase_definitions": PHASE_HELP, "date": env["date"], "environment": env,
               "simulations": report}

@@ -93,6 +93,7 @@ def rollout_simulation(
     pace: float | None = None,
     coherence_r: float | None = None,
     coherence_stretch: float | None = None,
+    keep_wall_velocity: bool = False,
 ) -> RolloutResult:
     """Roll a model out on one simulation and measure it (scaled coordinates throughout).
 
@@ -126,6 +127,8 @@ def rollout_simulation(
         coherence_stretch: with the guards, the coherence guard's copy of the start frame may
             stretch, without a change of volume, up to this principal stretch (>= 1;
             ``build_guards``' ``max_stretch``; ``None``: a rigid copy); it needs ``guard_radius``.
+        keep_wall_velocity: with the guards, the step after containment reads the velocity
+            from before it (``build_guards``' ``keep_velocity_wall``); it needs ``guard_radius``.
     Returns:
         The :class:`RolloutResult`.
     """
@@ -143,6 +146,9 @@ def rollout_simulation(
     if (coherence_r is not None or coherence_stretch is not None) and guard_radius is None:
         raise ConfigError(f"simulation '{name}': the coherence tolerance and stretch are a "
                           "guard's: they need the guards on")
+    if keep_wall_velocity and guard_radius is None:
+        raise ConfigError(f"simulation '{name}': the velocity kept through containment is a "
+                          "guard's: it needs the guards on")
     if not 1 <= n_steps <= max_steps:
         raise ConfigError(f"simulation '{name}': n_steps {n_steps} must be in 1..{max_steps} from "
                           f"frame {t0}")
@@ -155,6 +161,7 @@ def rollout_simulation(
     guards = None if guard_radius is None else build_guards(
         positions[0], node_type, x0, sub_type, radius=guard_radius, wall_cells=wall_cells,
         centring_r=centring_r, pace=pace, max_stretch=coherence_stretch,
+        keep_velocity_wall=keep_wall_velocity,
         **({} if coherence_r is None else {"tolerance_r": float(coherence_r)}))
     spread = None
     if ensemble:

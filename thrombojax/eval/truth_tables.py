@@ -145,7 +145,9 @@ def _guard_lines(result: Mapping) -> str:
             + ("" if stretch is None else f"to {copy} ")
             + f"with a tolerance of {FIXED_COHERENCE_R if tolerance is None else tolerance:.3g} "
             f"r ({how})"
-            + (f"; centring within {centring:.3g} r" if centring is not None else "") + ".\n\n")
+            + (f"; centring within {centring:.3g} r" if centring is not None else "")
+            + ("; the step after containment reads the velocity from before it"
+               if result.get("keep_wall_velocity") else "") + ".\n\n")
 
 
 def _pull_line(result: Mapping) -> str:

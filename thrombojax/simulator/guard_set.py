@@ -44,7 +44,7 @@ from flax import struct
 from thrombojax.errors import ConfigError
 from thrombojax.simulator.centring import centre_clot, centre_lengths
 from thrombojax.simulator.guards import coherence, contain
-from thrombojax.simulator.wall import Wall
+from thrombojax.simulator.wall import Wall, nearest_wall_point
 from thrombojax.simulator.wall_build import wall_from_simulation
 from thrombojax.types import NodeType
 
@@ -76,7 +76,13 @@ class GuardSet:
         keep_velocity: the step after reads the clot's velocity from before coherence (the
             previous frame moves with coherence's correction, :meth:`advance`): coherence
             corrects where the clot is, not how fast its nodes move; containment's
-            correction still changes the velocity.
+            correction still changes the velocity, unless ``keep_velocity_wall``.
+        keep_velocity_wall: the same for containment: the step after reads the velocity from
+            before containment (a node put back inside keeps moving as the step moved it).
+        free_past_end: coherence fits and moves only the clot nodes the vessel still holds:
+            nodes past an open end of the wall (the clot leaving through the outlet,
+            :class:`~thrombojax.simulator.wall.WallQuery`'s ``past_end``) are neither pulled
+            nor part of the fit (static; one more wall query per step).
         max_stretch, stretching: coherence's copy of the rest shape may stretch, without a
             change of volume, by principal stretches within ``[1 / max_stretch, max_stretch]``
             (:func:`~thrombojax.simulator.guards.coherence`'s ``max_stretch``), when
@@ -99,6 +105,8 @@ class GuardSet:
     tolerance: jax.Array | float = 0.0
     keep_centroid: bool = struct.field(pytree_node=False, default=False)
     keep_velocity: bool = struct.field(pytree_node=False, default=False)
+    keep_velocity_wall: bool = struct.field(pytree_node=False, default=False)
+    free_past_end: bool = struct.field(pytree_node=False, default=False)
     max_stretch: jax.Array | float = 1.0
     stretching: bool = struct.field(pytree_node=False, default=False)
     centring: bool = struct.field(pytree_node=False, default=False)
@@ -127,8 +135,9 @@ class GuardSet:
         state: :meth:`pace_step`, then :meth:`apply`. Returns ``(prev', nxt', corrections)``:
         the next state's history ``prev' = shift(prev, cur)`` (``shift``: the step's
         :meth:`~thrombojax.simulator.step.LearnedStep.shift`), or with ``keep_velocity``
-        ``shift(prev, cur + m)``, ``m`` coherence's move of every node, so that ``nxt' - prev'``
-        keeps the velocity coherence took out; the corrected ``nxt'``; pace's and the guards'
+        ``shift(prev, cur + m)``, ``m`` coherence's move of every node (and with
+        ``keep_velocity_wall`` containment's too), so that ``nxt' - prev'`` keeps the velocity
+        those guards took out; the corrected ``nxt'``; pace's and the guards'
         corrections together."""
         nxt, paced = self.pace_step(cur, nxt)
         nxt, guarded, moved = self._apply(nxt)
@@ -143,10 +152,11 @@ class GuardSet:
         return x, corrections
 
     def _apply(self, x):
-        """:meth:`apply`, and coherence's move of every node ``[N, 3]`` when ``keep_velocity``
-        (else None)."""
+        """:meth:`apply`, and the move of every node ``[N, 3]`` the next step's velocity keeps:
+        coherence's when ``keep_velocity``, plus containment's when ``keep_velocity_wall`` (None
+        when neither)."""
         n = x.shape[0]
-        moved = None
+        kept = None
         idx = self.clot_index
         xc = x[idx]
         ones = jnp.ones(idx.shape[0], bool)
@@ -158,15 +168,20 @@ class GuardSet:
             corrections["centring"] = jnp.zeros(n, x.dtype).at[idx].set(shifted)
         if self.coherence:
             before = xc
-            xc, shifted = coherence(xc, self.x_ref, ones, stiffness=self.stiffness,
+            held = ~nearest_wall_point(xc, self.wall).past_end if self.free_past_end else ones
+            xc, shifted = coherence(xc, self.x_ref, held, stiffness=self.stiffness,
                                     tolerance=self.tolerance, keep_centroid=self.keep_centroid,
                                     max_stretch=self.max_stretch if self.stretching else None)
             corrections["coherence"] = jnp.zeros(n, x.dtype).at[idx].set(shifted)
             if self.keep_velocity:
-                moved = jnp.zeros_like(x).at[idx].set(xc - before)
+                kept = xc - before
         if self.containment:
+            before = xc
             xc, shifted = contain(xc, ones, self.wall, margin=self.margin, tol=self.tol)
             corrections["containment"] = jnp.zeros(n, x.dtype).at[idx].set(shifted)
+            if self.keep_velocity_wall:
+                kept = xc - before if kept is None else kept + xc - before
+        moved = None if kept is None else jnp.zeros_like(x).at[idx].set(kept)
         return x.at[idx].set(xc), corrections, moved
 
 
@@ -186,6 +201,8 @@ def build_guards(
     tolerance_r: float = FIXED_COHERENCE_R,
     keep_centroid: bool = False,
     keep_velocity: bool = False,
+    keep_velocity_wall: bool = False,
+    free_past_end: bool = False,
     max_stretch: float | None = None,
     centring_r: float | None = None,
     pace: float | None = None,
@@ -208,6 +225,9 @@ def build_guards(
         keep_centroid: coherence leaves the clot's centroid where the step put it.
         keep_velocity: the step after reads the velocity from before coherence
             (:meth:`GuardSet.advance`).
+        keep_velocity_wall: the step after reads the velocity from before containment.
+        free_past_end: coherence leaves alone the clot nodes past an open end of the wall
+            (the part of the clot that has left the vessel) and fits its copy to the others.
         max_stretch: coherence's copy of the rest shape may stretch, without a change of
             volume, up to this principal stretch (>= 1); None: a rigid copy.
         centring_r: the centring guard's tolerance in radii (>= 0; the clot's centroid may lie
@@ -240,7 +260,8 @@ def build_guards(
         containment=bool(containment), margin=float(margin_r * radius),
         tol=float(tol_r * radius), coherence=bool(coherence), stiffness=float(stiffness),
         tolerance=float(tolerance_r * radius), keep_centroid=bool(keep_centroid),
-        keep_velocity=bool(keep_velocity),
+        keep_velocity=bool(keep_velocity), keep_velocity_wall=bool(keep_velocity_wall),
+        free_past_end=bool(free_past_end),
         max_stretch=float(max_stretch or 1.0), stretching=max_stretch is not None,
         centring=centring_r is not None,
         centre_tolerance=float((centring_r or 0.0) * radius),
