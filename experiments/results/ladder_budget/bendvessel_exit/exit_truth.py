@@ -127,6 +127,16 @@ def write_table(out: pathlib.Path, lines: list[str], radius: float) -> None:
     print("\n".join(lines))
 
 
+def add_split_arguments(ap: argparse.ArgumentParser) -> None:
+    """The arguments :func:`open_split` reads: ``data``, ``--held-out``, ``--validation``,
+    ``--out`` and ``--force``."""
+    ap.add_argument("data", type=pathlib.Path, help="the BendVessel dataset (.h5)")
+    ap.add_argument("--held-out", default="", help="comma-separated held-out simulations")
+    ap.add_argument("--validation", default="", help="comma-separated validation simulations")
+    ap.add_argument("--out", type=pathlib.Path, required=True)
+    ap.add_argument("--force", action="store_true", help="replace an existing --out")
+
+
 def open_split(args) -> tuple:
     """``(dataset, held-out names, validation names)`` of the parsed ``data``, ``--held-out``
     and ``--validation`` arguments, once ``--out`` may be written (``--force``); every name is

@@ -38,7 +38,7 @@ from thrombojax.simulator.guards import coherence
 from thrombojax.types import clot_mask
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "bendvessel_exit"))
-from exit_truth import exit_of, open_split, write_table  # noqa: E402
+from exit_truth import add_split_arguments, exit_of, open_split, write_table  # noqa: E402
 
 
 def along_motion(pos: np.ndarray, clot: np.ndarray, start: int) -> float:
@@ -57,12 +57,8 @@ def along_motion(pos: np.ndarray, clot: np.ndarray, start: int) -> float:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("data", type=pathlib.Path, help="the BendVessel dataset (.h5)")
-    ap.add_argument("--held-out", default="", help="comma-separated held-out simulations")
-    ap.add_argument("--validation", default="", help="comma-separated validation simulations")
+    add_split_arguments(ap)
     ap.add_argument("--stretch", default="1.1,1.2,1.3", help="comma-separated S >= 1")
-    ap.add_argument("--out", type=pathlib.Path, required=True)
-    ap.add_argument("--force", action="store_true", help="replace an existing --out")
     args = ap.parse_args()
     ds, held, validation = open_split(args)
     left_out = held + validation
