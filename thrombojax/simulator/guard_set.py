@@ -10,8 +10,9 @@ A rollout with guards runs, inside its compiled ``lax.scan``::
 
 and records per step how far each guard moved every node (``corrections``): a large correction
 means the model is wrong, and the reports show it. The next step's velocity is taken from the
-corrected positions (position-based dynamics). Guards act on clot rows only (gathered with the
-host-side index ``clot_index``), so the cost does not grow with the vessel.
+corrected positions (position-based dynamics), unless ``keep_velocity`` (coherence's move) or
+``keep_velocity_wall`` (containment's) keep the step's own. Guards act on clot rows only
+(gathered with the host-side index ``clot_index``), so the cost does not grow with the vessel.
 
 Distances are in the rollout's (scaled) coordinates; :func:`build_guards` takes them in vessel
 radii and converts with ``radius`` (one vessel radius in scaled coordinates). Defaults:
@@ -134,11 +135,10 @@ class GuardSet:
         """What a rollout does after the learned step ``cur -> nxt`` (``[N, 3]`` each) of one
         state: :meth:`pace_step`, then :meth:`apply`. Returns ``(prev', nxt', corrections)``:
         the next state's history ``prev' = shift(prev, cur)`` (``shift``: the step's
-        :meth:`~thrombojax.simulator.step.LearnedStep.shift`), or with ``keep_velocity``
-        ``shift(prev, cur + m)``, ``m`` coherence's move of every node (and with
-        ``keep_velocity_wall`` containment's too), so that ``nxt' - prev'`` keeps the velocity
-        those guards took out; the corrected ``nxt'``; pace's and the guards'
-        corrections together."""
+        :meth:`~thrombojax.simulator.step.LearnedStep.shift`), or with ``keep_velocity`` and/or
+        ``keep_velocity_wall`` ``shift(prev, cur + m)``, ``m`` every node's move by coherence
+        and/or containment, so that ``nxt' - prev'`` keeps the velocity those guards took out;
+        the corrected ``nxt'``; pace's and the guards' corrections together."""
         nxt, paced = self.pace_step(cur, nxt)
         nxt, guarded, moved = self._apply(nxt)
         return shift(prev, cur if moved is None else cur + moved), nxt, paced | guarded
