@@ -52,6 +52,33 @@ L="${L#,},outlet_e2_stretch,outlet_e2_freestretch,outlet_s0_alone,outlet_s1_alon
 python experiments/results/ladder_budget/bendvessel_speed_noise/track_table.py --out $OUT/track.md \
     $OUT/heldout $L $OUT/validation $L
 
+# 1b. Two more seeds of the outlet recipe (2 and 3, 37 epochs, side by side, 2,436-2,438 s each;
+# config.json, metrics.jsonl and loss.png in training/), rolled out as seeds 0 and 1 above, alone,
+# at auto and with the velocity kept through containment, and the four seeds 0-3 as one ensemble
+# (e4). Measured by cross_eval.py into folders of their own (/work/exp/s97/more_heldout,
+# more_validation: the commands their JSONs record), the JSONs copied into heldout/ and
+# validation/; the commands below, with every row there, wrote the tables.
+Q=/work/exp/s97
+ROOM=experiments/results/ladder_budget/bendvessel_room/follow_room30_last/config.json
+for s in 2 3; do
+    thrombojax train --config $ROOM --dataset data/bendvessel.h5 --seed $s --outlet-features 2 \
+        --out $Q/bv_outlet_s$s &
+done; wait
+E4=$R/bv_outlet_s0+$R/bv_outlet_s1+$Q/bv_outlet_s2+$Q/bv_outlet_s3
+ROWS4=""
+for m in s2 s3 e4; do
+    case $m in e4) RUN=$E4 ;; *) RUN=$Q/bv_outlet_$m ;; esac
+    ROWS4="$ROWS4 outlet_${m}_auto=$RUN:guards,tolerance_r=$AUTO outlet_${m}_wallvel=$RUN:guards,tolerance_r=$AUTO,keep_velocity_wall=1 outlet_${m}_alone=$RUN"
+done
+python $CE $OUT/heldout data/bendvessel.h5 bendvessel_005,bendvessel_012,bendvessel_019 \
+    "$TITLE; seeds 2 and 3 and the four seeds 0-3 as one ensemble (e4) at auto, wallvel and alone" $ROWS $ROWS4 &
+python $CE --sims-kind "validation simulation" $OUT/validation data/bendvessel.h5 bendvessel_009 \
+    "BendVessel, validation: the same rows" $ROWS $ROWS4 &
+wait
+L4=outlet_s2_auto,outlet_s3_auto,outlet_e4_auto,outlet_s2_wallvel,outlet_s3_wallvel,outlet_e4_wallvel,outlet_s2_alone,outlet_s3_alone,outlet_e4_alone
+python experiments/results/ladder_budget/bendvessel_speed_noise/track_table.py --force --out $OUT/track.md \
+    $OUT/heldout $L,$L4 $OUT/validation $L,$L4
+
 # 2. When the true clot passes the open end (no model)
 python $OUT/past_end.py data/bendvessel.h5 --held-out bendvessel_005,bendvessel_012,bendvessel_019 \
     --validation bendvessel_009 --out $OUT/past_end.md
