@@ -75,7 +75,18 @@ python $CE $OUT/heldout data/bendvessel.h5 bendvessel_005,bendvessel_012,bendves
 python $CE --sims-kind "validation simulation" $OUT/validation data/bendvessel.h5 bendvessel_009 \
     "BendVessel, validation: the same rows" $ROWS $ROWS4 &
 wait
-L4=outlet_s2_auto,outlet_s3_auto,outlet_e4_auto,outlet_s2_wallvel,outlet_s3_wallvel,outlet_e4_wallvel,outlet_s2_alone,outlet_s3_alone,outlet_e4_alone
+# 1c. The four-seed ensemble with the vessel-following prior's centring pull set at rollout time
+# (strength 0.5, tolerance 0, as ../bendvessel_pull/inference/; thrombojax rollout --centre-pull
+# 0.5 --centre-tolerance 0), alone and guarded at auto. Measured into /work/exp/s97/pull_heldout
+# and pull_validation (the commands their JSONs record), copied here; the commands below wrote
+# the tables with every row.
+ROWS4="$ROWS4 outlet_e4_pull_alone=$E4:alone,centre_pull=0.5,centre_tolerance_r=0 outlet_e4_pull_auto=$E4:guards,tolerance_r=$AUTO,centre_pull=0.5,centre_tolerance_r=0"
+python $CE $OUT/heldout data/bendvessel.h5 bendvessel_005,bendvessel_012,bendvessel_019 \
+    "$TITLE; seeds 2 and 3 and the four seeds 0-3 as one ensemble (e4) at auto, wallvel and alone, and e4 with the centring pull 0.5 set at rollout time (pull), alone and at auto" $ROWS $ROWS4 &
+python $CE --sims-kind "validation simulation" $OUT/validation data/bendvessel.h5 bendvessel_009 \
+    "BendVessel, validation: the same rows" $ROWS $ROWS4 &
+wait
+L4=outlet_s2_auto,outlet_s3_auto,outlet_e4_auto,outlet_s2_wallvel,outlet_s3_wallvel,outlet_e4_wallvel,outlet_s2_alone,outlet_s3_alone,outlet_e4_alone,outlet_e4_pull_alone,outlet_e4_pull_auto
 python experiments/results/ladder_budget/bendvessel_speed_noise/track_table.py --force --out $OUT/track.md \
     $OUT/heldout $L,$L4 $OUT/validation $L,$L4
 
