@@ -153,15 +153,10 @@ def open_split(args) -> tuple:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("data", type=pathlib.Path, help="the BendVessel dataset (.h5)")
-    ap.add_argument("--held-out", default="", help="comma-separated simulations to score "
-                    "against the mean of the others")
-    ap.add_argument("--validation", default="", help="comma-separated validation simulations "
-                    "(left out of the --steady count with the held-out ones)")
+    add_split_arguments(ap)  # --held-out: scored against the mean of the others
     ap.add_argument("--steady", type=float, default=0.0, help="also count the training "
-                    "windows --speed-noise-steady F leaves un-noised (0: skip)")
-    ap.add_argument("--out", type=pathlib.Path, required=True)
-    ap.add_argument("--force", action="store_true", help="replace an existing --out")
+                    "windows --speed-noise-steady F leaves un-noised, the held-out and "
+                    "validation simulations left out (0: skip)")
     args = ap.parse_args()
     ds, held, validation = open_split(args)
     radius = float(vessel_radius(ds))

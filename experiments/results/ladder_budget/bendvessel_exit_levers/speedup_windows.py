@@ -31,7 +31,13 @@ from thrombojax.train.speedup import speedup_window_weight
 from thrombojax.types import clot_mask
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "bendvessel_exit"))
-from exit_truth import STEADY_FRAMES, exit_of, open_split, write_table  # noqa: E402
+from exit_truth import (  # noqa: E402
+    STEADY_FRAMES,
+    add_split_arguments,
+    exit_of,
+    open_split,
+    write_table,
+)
 
 
 @functools.partial(jax.jit, static_argnames="fraction")
@@ -56,13 +62,9 @@ def count(ds, name: str, radius: float, fraction: float) -> dict:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("data", type=pathlib.Path, help="the BendVessel dataset (.h5)")
-    ap.add_argument("--held-out", default="", help="comma-separated held-out simulations")
-    ap.add_argument("--validation", default="", help="comma-separated validation simulations")
+    add_split_arguments(ap)
     ap.add_argument("--weight", type=float, required=True, help="--speedup-weight W")
     ap.add_argument("--fraction", type=float, default=0.1, help="--speedup-fraction F")
-    ap.add_argument("--out", type=pathlib.Path, required=True)
-    ap.add_argument("--force", action="store_true", help="replace an existing --out")
     args = ap.parse_args()
     ds, held, validation = open_split(args)
     left_out = held + validation

@@ -32,6 +32,13 @@ from exit_truth import add_split_arguments, exit_of, open_split, write_table  # 
 LAST = 8
 
 
+@jax.jit
+def past_end_share(frames: jax.Array, wall) -> jax.Array:
+    """``[F]``: the share of each frame's points ``frames [F, C, 3]`` past the wall's open end
+    (one compiled program per wall shape, all frames at once)."""
+    return jax.vmap(lambda x: jnp.mean(nearest_wall_point(x, wall).past_end))(frames)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     add_split_arguments(ap)
@@ -49,9 +56,7 @@ def main() -> None:
         pos, node_type = np.asarray(sim.positions, np.float32), np.asarray(sim.node_type)
         clot = clot_mask(node_type)
         wall = wall_from_simulation(pos[0], node_type, sim.wall_cells)
-        past = jax.jit(lambda x, w=wall: nearest_wall_point(x, w).past_end)
-        share = [float(np.mean(np.asarray(past(jnp.asarray(pos[t][clot])))))
-                 for t in range(pos.shape[0] - LAST, pos.shape[0])]
+        share = np.asarray(past_end_share(jnp.asarray(pos[-LAST:, clot]), wall))
         speed = np.linalg.norm(np.diff(clot_centroids(pos, clot), axis=0), axis=1)
         kind = "held out" if name in held else "validation"
         lines.append(f"| {name} ({kind}, {pos.shape[0]} frames) | {exit_of(speed)} | "
