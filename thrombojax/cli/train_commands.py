@@ -134,6 +134,16 @@ def _add_train(sub) -> None:
                    "(default 1: single-step loss)")
     p.add_argument("--pushforward-steps", type=NN_INT, help="steps applied without gradients "
                    "before the loss steps (push-forward training; default 0)")
+    p.add_argument("--pushforward-guards", action="store_true", default=None, help="pass every "
+                   "push-forward step's prediction through the rollout's coherence and "
+                   "containment guards before the next step reads it, so the loss starts from "
+                   "the state a guarded rollout is in (needs --pushforward-steps >= 1)")
+    p.add_argument("--input-guards", action="store_true", default=None, help="pass every "
+                   "training window's input frames (after the noise) through the rollout's "
+                   "coherence and containment guards, the target still the true next frame")
+    p.add_argument("--guard-coherence", type=NN_FLOAT, metavar="R", help="with "
+                   "--pushforward-guards or --input-guards: coherence's tolerance in vessel "
+                   "radii (default 0.2)")
     p.add_argument("--members", type=POS_INT, default=1, help="train an ensemble of M members "
                    "differing only by seed into DIR/member_<i> (rollouts then report spread)")
     p.add_argument("--curriculum-epochs", type=NN_FLOAT, help="grow k from 1 to "

@@ -64,6 +64,7 @@ _RULES: dict[str, tuple[str, float, bool, bool]] = {
     "checkpoint_every": ("int", 0, True, False),
     "rollout_steps": ("int", 1, True, False),
     "pushforward_steps": ("int", 0, True, False),
+    "guard_coherence": ("float", 0.0, True, False),
     "curriculum_epochs": ("float", 0.0, True, False),
     "history": ("int", 1, True, False),
 }
@@ -105,7 +106,8 @@ def check_train_values(cfg: Any) -> None:
     Also: the memory ``bary_ratio`` asks for even on one window
     (:func:`thrombojax.train.memory.check_train_memory`; the training loop checks again with the
     dataset's sizes), ``tiny``, ``noise_walk``, ``stop_history_gradient``,
-    ``uniform_rotation``, ``rest_edges`` and ``wall_signed`` booleans (``wall_signed`` only with
+    ``uniform_rotation``, ``rest_edges``, ``pushforward_guards`` (only with
+    ``pushforward_steps``) and ``wall_signed`` booleans (``wall_signed`` only with
     ``wall_features``), ``history_noise`` only with ``history >= 2``,
     ``model_config`` an object; upper bounds in :data:`_HIGH`.
     """
@@ -119,7 +121,8 @@ def check_train_values(cfg: Any) -> None:
         budget=1, length=3, max_neighbors=cfg.bary_max_neighbors,
     ), values={"bary_ratio": float(cfg.bary_ratio), "bary_max_neighbors": cfg.bary_max_neighbors})
     for flag in ("tiny", "noise_walk", "stop_history_gradient", "wall_signed", "wall_clot_mean",
-                 "uniform_rotation", "rest_edges"):
+                 "uniform_rotation", "rest_edges", "pushforward_guards",
+                 "input_guards"):
         if not isinstance(getattr(cfg, flag, False), bool):
             raise ConfigError(f"{_option(flag)} ({flag}) must be true or false, got "
                               f"{getattr(cfg, flag)!r}")
@@ -130,6 +133,9 @@ def check_train_values(cfg: Any) -> None:
         if getattr(cfg, flag, False) and not getattr(cfg, "wall_features", 0.0) > 0:
             raise ConfigError(f"{_option(flag)} ({flag}) needs --wall-features C > 0 (the "
                               "cutoff of the features it changes)")
+    if getattr(cfg, "pushforward_guards", False) and getattr(cfg, "pushforward_steps", 0) < 1:
+        raise ConfigError("--pushforward-guards (pushforward_guards) needs --pushforward-steps "
+                          "P >= 1 (it guards the push-forward steps' predictions)")
     if getattr(cfg, "history_noise", 0.0) > 0 and getattr(cfg, "history", 1) < 2:
         raise ConfigError("--history-noise (history_noise) needs --history H >= 2 (it perturbs "
                           "the history's accelerations; with one previous frame there are none)")
@@ -153,6 +159,8 @@ def check_dense_inputs(cfg, budget: int, where: str = "") -> None:
             if getattr(cfg, n, 0.0) > 0]
     if getattr(cfg, "wall_signed", False):
         used.append("--wall-signed")
+    used += [f"--{n.replace('_', '-')}" for n in ("pushforward_guards", "input_guards")
+             if getattr(cfg, n, False)]
     if used and budget > DENSE_PLANE_NODES:
         raise ConfigError(f"{where + ': ' if where else ''}{', '.join(used)} search the wall "
                           f"densely, for at most {DENSE_PLANE_NODES} nodes per sample; the "
@@ -167,4 +175,5 @@ def uses_vessel_radius(cfg) -> bool:
             or cfg.axis_features > 0 or cfg.follow_axis > 0 or cfg.lateral_hold > 0
             or cfg.outlet_features > 0 or cfg.shape_features > 0
             or cfg.clearance_features > 0 or cfg.section_features > 0
-            or cfg.history_noise > 0 or cfg.select_by == "rollout")
+            or cfg.history_noise > 0 or cfg.select_by == "rollout"
+            or cfg.pushforward_guards or cfg.input_guards)

@@ -130,6 +130,18 @@ class TrainConfig:
             ``pushforward_steps + k + history + 1`` frames, :attr:`window_length`).
         pushforward_steps: steps applied without gradients before the loss steps
             (push-forward training; 0: off).
+        pushforward_guards: pass every push-forward step's prediction through the rollout's
+            coherence and containment guards before the next step reads it, so the loss starts
+            from the state a guarded rollout is in (:mod:`thrombojax.train.push_guards`; needs
+            ``pushforward_steps >= 1``; the windows are led by their simulation's first frame).
+        input_guards: pass the input frames of every training window (after the training
+            noise) through the rollout's coherence and containment guards, the target still the
+            true next frame, so the model learns what to do from the guarded states of a
+            guarded rollout without a push-forward pass (:mod:`thrombojax.train.push_guards`;
+            the windows are led by their simulation's first frame).
+        guard_coherence: with ``pushforward_guards`` or ``input_guards``, coherence's
+            tolerance in vessel radii (>= 0; default 0.2, about what ``thrombojax rollout
+            --coherence-tolerance auto`` fits on BendVessel).
         curriculum_epochs: grow k linearly from 1 to ``rollout_steps`` over this many epochs
             (0: k from the start). Validation always uses the final k.
         frame: the frame the learned step works in: ``"global"`` (the dataset's axes) or
@@ -242,6 +254,9 @@ class TrainConfig:
     skip_frames: int = 0
     rollout_steps: int = 1
     pushforward_steps: int = 0
+    pushforward_guards: bool = False
+    input_guards: bool = False
+    guard_coherence: float = 0.2
     curriculum_epochs: float = 0.0
     frame: str = "global"
     wall_features: float = 0.0

@@ -217,10 +217,12 @@ def train(
     max_nodes = max(train_store.max_nodes, val_store.max_nodes if val_store else 0)
     budget = padding_budget(max_nodes, cfg.nodes_per_sample)
     check_dense_inputs(cfg, budget, where=str(dataset_path))
+    # training windows led by the rest frame
+    lead = cfg.rest_edges or cfg.pushforward_guards or cfg.input_guards
     check_train_memory(estimate_train_memory(
         n_windows=len(train_store), n_val_windows=len(val_store) if val_store else 0,
         bary_ratio=cfg.bary_ratio, batch_size=batch_size, budget=budget,
-        length=length + cfg.rest_edges, max_neighbors=cfg.bary_max_neighbors,
+        length=length + lead, max_neighbors=cfg.bary_max_neighbors,
     ), values={k: getattr(cfg, k) for k in _MEMORY_OPTIONS}, where=str(dataset_path))
     plan_of = functools.partial(epoch_plan, len(train_store), bary_ratio=cfg.bary_ratio,
                                 batch_size=batch_size, seed=cfg.seed)
@@ -229,7 +231,7 @@ def train(
     schedule = make_schedule(lr, total_steps, round(cfg.warmup_epochs * steps_per_epoch))
     tx = make_optimizer(schedule, weight_decay=cfg.weight_decay, grad_clip=cfg.grad_clip)
     batch_of = functools.partial(make_batch, train_store, budget=budget, seed=cfg.seed,
-                                 nodes_per_sample=cfg.nodes_per_sample, rest=cfg.rest_edges)
+                                 nodes_per_sample=cfg.nodes_per_sample, rest=lead)
     run_key, init_key = jax.random.split(jax.random.PRNGKey(cfg.seed))
     # radii -> scaled; the radius (possibly a geometric estimate) only when it is needed
     radius = vessel_radius(ds) / float(scaling.scale) if uses_vessel_radius(cfg) else 0.0

@@ -22,7 +22,9 @@ Push-forward training (Brandstetter, Worrall and Welling 2022, "Message passing 
 solvers"): with ``pushforward = p > 0`` the step is first applied ``p`` times from
 ``(s_{t-1}, s_t)`` *without* gradients, and the loss steps start from the model's own prediction
 ``(s^_{t+p-1}, s^_{t+p})``; the model learns to correct the input distribution it creates in a
-rollout, at the cost of one forward pass per pushed step.
+rollout, at the cost of one forward pass per pushed step. With ``push_guards``
+(:mod:`thrombojax.train.push_guards`) every pushed frame passes through the rollout's coherence
+and containment guards first, so the loss starts from the state a guarded rollout is in.
 
 :func:`flat_window_loss_terms` computes the same terms for a whole batch with the model run
 once on the batch's flat graph (:mod:`thrombojax.simulator.flat`).
@@ -53,6 +55,7 @@ import jax.numpy as jnp
 from thrombojax.simulator.flat import FlatStep
 from thrombojax.simulator.rollout import unroll
 from thrombojax.simulator.step import LearnedStep, target_acceleration
+from thrombojax.train.push_guards import PushGuards, guarded_push
 from thrombojax.train.wall_loss import wall_sum
 from thrombojax.types import TargetStats, clot_mask
 
@@ -73,6 +76,7 @@ def window_loss_terms(
     rng: jax.Array | None,
     wall_term: bool = False,
     rest: jax.Array | None = None,
+    push_guards: PushGuards | None = None,
 ) -> dict[str, jax.Array]:
     """Run the learned step on one window and return summed squared errors over its clot nodes.
 
@@ -89,7 +93,11 @@ def window_loss_terms(
         wall_term: also return ``wall_sum``, the predictions' squared excess through the wall
             (:mod:`thrombojax.train.wall_loss`; static: off, no wall search is compiled).
         rest: ``[n_nodes, 3]`` the clot's rest state (the simulation's first frame), which a
-            step with ``rest_edges`` reads (required then: a window starts later).
+            step with ``rest_edges`` reads (required then: a window starts later), and the
+            push-forward guards' coherence holds the clot to.
+        push_guards: guard every push-forward step's prediction before the next step reads it
+            (:mod:`thrombojax.train.push_guards`; static; needs ``pushforward >= 1`` and
+            ``rest``). ``None``: the plain push-forward.
     Returns:
         ``{"loss_sum", "mse_sum", "clot_mean_sum", "count"}`` (and ``"wall_sum"``): squared
         errors summed over clot nodes and averaged over steps and x, y, z; the clot-wide part
@@ -97,7 +105,7 @@ def window_loss_terms(
     """
     frames, positions, outputs = _predict(step, params, stats, frames, node_type, mask, k=k,
                                           pushforward=pushforward, train=train, rng=rng,
-                                          rest=rest)
+                                          rest=rest, push_guards=push_guards)
     return _terms(step, stats, frames, node_type, mask, positions, outputs, wall_term)
 
 
@@ -134,7 +142,7 @@ def flat_window_loss_terms(
 
 
 def _predict(step, params, stats, frames, node_type, mask, *, k, pushforward, train, rng,
-             rest=None):
+             rest=None, push_guards=None):
     """The window's first ``H + k + 1`` frames after the push-forward steps (``H`` the step's
     history: 1 for one velocity), and the ``k`` predicted positions and outputs (``[k, ...]``);
     frames lead with the window axis ``W``; ``rest``: the rest frame (``rest_edges``)."""
@@ -148,10 +156,18 @@ def _predict(step, params, stats, frames, node_type, mask, *, k, pushforward, tr
         raise ValueError(f"k = {k} loss steps after {pushforward} push-forward steps with "
                          f"{h} previous frame(s) need a window of >= {need} frames, got "
                          f"{frames.shape[0]}")
-    if pushforward:
+    if push_guards is not None and (not pushforward or rest is None):
+        raise ValueError("push-forward guards need push-forward steps (pushforward >= 1) and the "
+                         "window's rest frame")
+    if push_guards is not None:
+        pushed = guarded_push(step, params, stats, frames, rest, node_type, mask, pushforward,
+                              push_guards, train=train,
+                              rng=None if rng is None else jax.random.fold_in(rng, 10_007))
+    elif pushforward:
         pushed, _ = unroll(step, params, stats, step.previous(frames, h, rest), frames[h],
                            node_type, mask, pushforward, train=train,
                            rng=None if rng is None else jax.random.fold_in(rng, 10_007))
+    if pushforward:
         pushed = jax.lax.stop_gradient(pushed)
         start = jnp.concatenate([frames[:h + 1], pushed])[-(h + 1):]
         frames = jnp.concatenate([start, frames[pushforward + h + 1:need]])

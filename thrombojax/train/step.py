@@ -42,12 +42,14 @@ import optax
 from jax.sharding import Mesh, NamedSharding
 from jax.sharding import PartitionSpec as P
 
+from thrombojax.errors import ConfigError
 from thrombojax.models.registry import Surrogate
 from thrombojax.simulator.flat import FlatStep, flat_batch_ok
 from thrombojax.simulator.step import LearnedStep, make_step
 from thrombojax.train.averaging import average_weights
 from thrombojax.train.corrupt import corrupt_window
 from thrombojax.train.loss import flat_window_loss_terms, window_loss_terms
+from thrombojax.train.push_guards import PushGuards, guard_inputs
 from thrombojax.train.speedup import speedup_window_weight
 from thrombojax.train.state import TrainState
 from thrombojax.types import TargetStats
@@ -121,6 +123,8 @@ def batch_loss(
     wall_loss_weight: float = 0.0,
     speedup_weight: float = 0.0,
     speedup_fraction: float = 0.1,
+    push_guards: PushGuards | None = None,
+    input_guards: PushGuards | None = None,
 ) -> tuple[jax.Array, dict[str, jax.Array]]:
     """Loss of a batch pooled over its clot nodes, and metrics.
 
@@ -128,8 +132,8 @@ def batch_loss(
         model: the surrogate (or its learned step). params, stats: its variables and statistics.
         batch: :class:`thrombojax.data.batching.Batch` (``frames [B, W, N, 3]``,
             ``W >= pushforward + k + H + 1``, ``H`` the step's history; a step with
-            ``rest_edges`` reads ``[B, 1 + W, N, 3]``, the rest frame first: ``make_batch(...,
-            rest=True)``).
+            ``rest_edges``, and ``push_guards``, read ``[B, 1 + W, N, 3]``, the rest frame
+            first: ``make_batch(..., rest=True)``).
         rng: PRNG key for noise and dropout (``None`` in evaluation).
         train: training mode (noise, dropout).
         noise_std, noise_gamma, noise_walk, noise_shared: training noise
@@ -170,6 +174,12 @@ def batch_loss(
             ``speedup_fraction`` from its speed into s_t weigh ``1 + speedup_weight`` in every
             term of the loss (:func:`thrombojax.train.speedup.speedup_window_weight`; 0: off,
             nothing compiled). ``mse`` and ``nodes`` stay unweighted.
+        push_guards: the rollout's coherence and containment applied to every push-forward
+            step's prediction (:mod:`thrombojax.train.push_guards`; ``None``: off; needs
+            ``pushforward >= 1``, not ``flat_batch``).
+        input_guards: the same guards applied to the window's input frames after the noise
+            (in training only; :func:`thrombojax.train.push_guards.guard_inputs`; ``None``:
+            off; not ``flat_batch``).
     Returns:
         ``(loss, metrics)``: ``loss`` is the normalised-acceleration MSE (plus the weighted
         clot-wide and wall terms), a mean over the clot nodes weighted by their window's
@@ -189,18 +199,28 @@ def batch_loss(
                                 stretch_noise=stretch_noise, time_scale=time_scale)
 
     wall_term = bool(wall_loss_weight)  # static: no wall search compiled when off
+    lead = step.rest_edges or push_guards is not None or input_guards is not None  # rest first
+    if push_guards is not None and (flat_batch or not pushforward):
+        raise ConfigError("push-forward guards need push-forward steps (--pushforward-steps "
+                          ">= 1) and the vmapped batch (not flat_batch)")
+    if input_guards is not None and flat_batch:
+        raise ConfigError("input guards need the vmapped batch (not flat_batch)")
 
     def one(frames, node_type, mask, key):
         model_key, rest = None, None
-        if step.rest_edges:  # the window is led by the rest frame, which no noise touches
+        if lead:  # the window is led by the rest frame, which no noise touches
             rest, frames = frames[0], frames[1:]
         if key is not None:
             noise_key, model_key = jax.random.split(key)
             if train:
+                clean = frames
                 frames = corrupt(noise_key, frames, node_type, mask)
+                if input_guards is not None:
+                    frames = guard_inputs(frames, clean, rest, node_type, mask, input_guards,
+                                          step.history)
         return window_loss_terms(
             step, params, stats, frames, node_type, mask, k=k, pushforward=pushforward,
-            train=train, rng=model_key, wall_term=wall_term, rest=rest,
+            train=train, rng=model_key, wall_term=wall_term, rest=rest, push_guards=push_guards,
         )
 
     if flat_batch and flat_batch_ok(step):
@@ -216,7 +236,7 @@ def batch_loss(
     denom = jnp.maximum(count, 1.0)
     total, loss_denom = jnp.sum, denom
     if speedup_weight:  # static: nothing compiled when off
-        clean = batch.frames[:, 1:] if step.rest_edges else batch.frames
+        clean = batch.frames[:, 1:] if lead else batch.frames
         weights = jax.vmap(functools.partial(
             speedup_window_weight, current=step.history, weight=speedup_weight,
             fraction=speedup_fraction))(clean, batch.node_type, batch.mask)
@@ -279,6 +299,8 @@ def make_train_step(
     speedup_weight: float = 0.0,
     speedup_fraction: float = 0.1,
     average_from: int | None = None,
+    push_guards: PushGuards | None = None,
+    input_guards: PushGuards | None = None,
 ) -> Callable[[TrainState, Any, jax.Array], tuple[TrainState, dict]]:
     """Build the jitted ``train_step(state, batch, rng) -> (state, metrics)``.
 
@@ -288,10 +310,7 @@ def make_train_step(
         stats: target statistics (closed over, constants of the compiled step).
         noise_std, noise_gamma, noise_walk, noise_shared, wall_noise, history_noise,
             speed_noise, speed_noise_steady, direction_noise, swell_noise, stretch_noise,
-            time_scale: training
-            noise and time
-            scaling
-            (:func:`batch_loss`).
+            time_scale: training noise and time scaling (:func:`batch_loss`).
         k: steps of the unrolled loss (1: single step).
         pushforward: steps applied first without gradients (push-forward training).
         donate: donate the old state's buffers to the new one.
@@ -300,6 +319,8 @@ def make_train_step(
         wall_loss_weight: weight of the wall term in the loss (:func:`batch_loss`).
         speedup_weight, speedup_fraction: the extra loss weight of windows whose clot speeds
             up (:func:`batch_loss`).
+        push_guards, input_guards: the guards of the push-forward steps and of the input
+            frames (:func:`batch_loss`; ``None``: off).
         average_from: with a state that carries an ``average`` (weight averaging), the number
             of steps done before the first averaged one: until then the average follows the
             weights, from then on it is their running mean (:func:`average_weights`).
@@ -322,7 +343,8 @@ def make_train_step(
                 pushforward=pushforward,
                 flat_batch=flat_batch, clot_mean_weight=clot_mean_weight,
                 wall_loss_weight=wall_loss_weight, speedup_weight=speedup_weight,
-                speedup_fraction=speedup_fraction,
+                speedup_fraction=speedup_fraction, push_guards=push_guards,
+                input_guards=input_guards,
             )
 
         (_, metrics), grads = jax.value_and_grad(loss_fn, has_aux=True)(state.params)

@@ -13,6 +13,7 @@ from __future__ import annotations
 from typing import Any
 
 from thrombojax.train.config import TrainConfig
+from thrombojax.train.push_guards import MARGIN_R, PushGuards
 
 __all__ = ["train_step_options"]
 
@@ -23,13 +24,15 @@ def train_step_options(cfg: TrainConfig, radius: float, total_steps: int) -> dic
     Args:
         cfg: the training config.
         radius: the vessel radius in scaled coordinates; multiplies the noises given in radii
-            (``noise_std``, ``wall_noise``, ``history_noise``).
+            (``noise_std``, ``wall_noise``, ``history_noise``) and the push-forward guards'
+            distances.
         total_steps: optimiser steps of the whole run; weight averaging starts at
             ``total_steps - round(cfg.average_weights * total_steps)``.
 
     Returns:
         A dict of keyword arguments for :func:`thrombojax.train.step.make_train_step`.
     """
+    guards = PushGuards(margin=MARGIN_R * radius, tolerance=cfg.guard_coherence * radius)
     return {
         "noise_std": cfg.noise_std * radius,
         "noise_gamma": cfg.noise_gamma,
@@ -49,4 +52,6 @@ def train_step_options(cfg: TrainConfig, radius: float, total_steps: int) -> dic
         "speedup_weight": cfg.speedup_weight,
         "speedup_fraction": cfg.speedup_fraction,
         "average_from": total_steps - round(cfg.average_weights * total_steps),
+        "push_guards": guards if cfg.pushforward_guards else None,
+        "input_guards": guards if cfg.input_guards else None,
     }
