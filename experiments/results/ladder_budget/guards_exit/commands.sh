@@ -89,6 +89,21 @@ wait
 L4=outlet_s2_auto,outlet_s3_auto,outlet_e4_auto,outlet_s2_wallvel,outlet_s3_wallvel,outlet_e4_wallvel,outlet_s2_alone,outlet_s3_alone,outlet_e4_alone,outlet_e4_pull_alone,outlet_e4_pull_auto
 python experiments/results/ladder_budget/bendvessel_speed_noise/track_table.py --force --out $OUT/track.md \
     $OUT/heldout $L,$L4 $OUT/validation $L,$L4
+# 1d. (the next session, same machine and files) The four-seed ensemble with containment only
+# (coherence off), with and without the velocity kept through containment, and each with the
+# centring pull 0.5 set at rollout time. Measured into /work/exp/s98/e4_heldout and
+# e4_validation (the commands their JSONs record), copied here; the commands below, with every
+# row there, wrote the tables.
+ROWS4="$ROWS4 outlet_e4_contain=$E4:guards,coherence=0 outlet_e4_containvel=$E4:guards,coherence=0,keep_velocity_wall=1"
+ROWS4="$ROWS4 outlet_e4_pull_contain=$E4:guards,coherence=0,centre_pull=0.5,centre_tolerance_r=0 outlet_e4_pull_containvel=$E4:guards,coherence=0,keep_velocity_wall=1,centre_pull=0.5,centre_tolerance_r=0"
+python $CE $OUT/heldout data/bendvessel.h5 bendvessel_005,bendvessel_012,bendvessel_019 \
+    "$TITLE; seeds 2 and 3 and the four seeds 0-3 as one ensemble (e4) at auto, wallvel and alone, and e4 with the centring pull 0.5 set at rollout time (pull), alone and at auto; e4 with containment only (contain), that with the velocity kept through containment (containvel), and both with the pull" $ROWS $ROWS4 &
+python $CE --sims-kind "validation simulation" $OUT/validation data/bendvessel.h5 bendvessel_009 \
+    "BendVessel, validation: the same rows" $ROWS $ROWS4 &
+wait
+L4=$L4,outlet_e4_contain,outlet_e4_containvel,outlet_e4_pull_contain,outlet_e4_pull_containvel
+python experiments/results/ladder_budget/bendvessel_speed_noise/track_table.py --force --out $OUT/track.md \
+    $OUT/heldout $L,$L4 $OUT/validation $L,$L4
 
 # 2. When the true clot passes the open end (no model)
 python $OUT/past_end.py data/bendvessel.h5 --held-out bendvessel_005,bendvessel_012,bendvessel_019 \
