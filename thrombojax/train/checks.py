@@ -106,7 +106,7 @@ def check_train_values(cfg: Any) -> None:
     Also: the memory ``bary_ratio`` asks for even on one window
     (:func:`thrombojax.train.memory.check_train_memory`; the training loop checks again with the
     dataset's sizes), ``tiny``, ``noise_walk``, ``stop_history_gradient``,
-    ``uniform_rotation``, ``rest_edges``, ``pushforward_guards`` (only with
+    ``uniform_rotation``, ``rest_edges``, ``input_guards``, ``pushforward_guards`` (only with
     ``pushforward_steps``) and ``wall_signed`` booleans (``wall_signed`` only with
     ``wall_features``), ``history_noise`` only with ``history >= 2``,
     ``model_config`` an object; upper bounds in :data:`_HIGH`.

@@ -132,8 +132,8 @@ def batch_loss(
         model: the surrogate (or its learned step). params, stats: its variables and statistics.
         batch: :class:`thrombojax.data.batching.Batch` (``frames [B, W, N, 3]``,
             ``W >= pushforward + k + H + 1``, ``H`` the step's history; a step with
-            ``rest_edges``, and ``push_guards``, read ``[B, 1 + W, N, 3]``, the rest frame
-            first: ``make_batch(..., rest=True)``).
+            ``rest_edges``, ``push_guards`` or ``input_guards`` reads ``[B, 1 + W, N, 3]``,
+            the rest frame first: ``make_batch(..., rest=True)``).
         rng: PRNG key for noise and dropout (``None`` in evaluation).
         train: training mode (noise, dropout).
         noise_std, noise_gamma, noise_walk, noise_shared: training noise
