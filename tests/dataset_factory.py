@@ -451,3 +451,26 @@ def tiny_mgn_step():
 
     return make_step(create_model("mgn", get_config("mgn", tiny=True, max_neighbors=8,
                                                     radius=0.45)))
+
+
+def tube_window(seed=0, n_clot=40, n_pad=4, speed=0.05, touch=(0.95, 0.99), inner=0.6,
+                z_range=(-0.6, 0.4), n_frames=3):
+    """Frames of a clot sliding along z inside a straight tube of radius 1 (24 x 13 wall nodes),
+    half of its nodes at radius ``[0, inner)``, the other half against the wall (radius in
+    ``touch``), plus ``n_pad`` padded nodes; ``(frames [n_frames, N, 3], nt, mask, rho)``."""
+    from thrombojax.types import NodeType
+
+    rng = np.random.default_rng(seed)
+    ang = np.linspace(0, 2 * np.pi, 24, endpoint=False)
+    vessel = np.array([[np.cos(a), np.sin(a), z] for z in np.linspace(-1.5, 1.5, 13)
+                       for a in ang])
+    rho = np.concatenate([rng.uniform(0.0, inner, n_clot // 2),
+                          rng.uniform(*touch, n_clot - n_clot // 2)])
+    phi = rng.uniform(0, 2 * np.pi, n_clot)
+    clot = np.stack([rho * np.cos(phi), rho * np.sin(phi), rng.uniform(*z_range, n_clot)], 1)
+    frames = [np.concatenate([vessel, clot + [0.0, 0.0, i * speed], np.zeros((n_pad, 3))])
+              for i in range(n_frames)]
+    nt = np.array([NodeType.VESSEL] * len(vessel) + [NodeType.CLOT] * n_clot
+                  + [NodeType.VESSEL] * n_pad, np.int32)
+    mask = np.arange(len(frames[0])) < len(vessel) + n_clot
+    return np.asarray(frames, np.float32), nt, mask, rho

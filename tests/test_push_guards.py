@@ -10,7 +10,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from dataset_factory import train_tiny_cli, window_batch
+from dataset_factory import train_tiny_cli, tube_window, window_batch
 
 from thrombojax.errors import ConfigError
 from thrombojax.graph.wall_nodes import local_wall_plane
@@ -28,20 +28,10 @@ _LOOSE = 1e3  # a coherence tolerance nothing reaches: containment alone
 
 
 def _tube(n_frames=5, n_clot=40, speed=0.05, seed=0):
-    """A clot sliding along z in a straight tube of radius 1 (24 x 13 wall nodes), half of its
-    nodes at radius 0.9-0.95, and its frames ``[n_frames, N, 3]``, node types, mask, radii."""
-    rng = np.random.default_rng(seed)
-    ang = np.linspace(0, 2 * np.pi, 24, endpoint=False)
-    vessel = np.array([[np.cos(a), np.sin(a), z] for z in np.linspace(-1.5, 1.5, 13)
-                       for a in ang])
-    rho = np.concatenate([rng.uniform(0.0, 0.5, n_clot // 2),
-                          rng.uniform(0.9, 0.95, n_clot - n_clot // 2)])
-    phi = rng.uniform(0, 2 * np.pi, n_clot)
-    clot = np.stack([rho * np.cos(phi), rho * np.sin(phi), rng.uniform(-0.6, 0.2, n_clot)], 1)
-    frames = np.asarray([np.concatenate([vessel, clot + [0.0, 0.0, i * speed]])
-                         for i in range(n_frames)], np.float32)
-    nt = np.array([NodeType.VESSEL] * len(vessel) + [NodeType.CLOT] * n_clot, np.int32)
-    return frames, nt, np.ones(len(nt), bool), rho
+    """A clot sliding along z in a straight tube of radius 1, half of its nodes at radius
+    0.9-0.95: its frames ``[n_frames, N, 3]``, node types, mask, radii."""
+    return tube_window(seed, n_clot, 0, speed, (0.9, 0.95), inner=0.5, z_range=(-0.6, 0.2),
+                       n_frames=n_frames)
 
 
 def _radial(x):

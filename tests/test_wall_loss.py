@@ -12,7 +12,7 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 import pytest
-from dataset_factory import window_batch
+from dataset_factory import tube_window, window_batch
 
 from thrombojax.errors import ConfigError
 from thrombojax.graph.wall_nodes import local_wall_plane
@@ -34,20 +34,7 @@ def _tube_window(seed=0, n_clot=40, n_pad=4, speed=0.05, touch=(0.95, 0.99)):
     """Three frames of a clot sliding along z inside a straight tube of radius 1 (24 x 13 wall
     nodes), half of its nodes against the wall (radius in ``touch``); ``(frames, nt, mask,
     rho)``."""
-    rng = np.random.default_rng(seed)
-    ang = np.linspace(0, 2 * np.pi, 24, endpoint=False)
-    vessel = np.array([[np.cos(a), np.sin(a), z] for z in np.linspace(-1.5, 1.5, 13)
-                       for a in ang])
-    rho = np.concatenate([rng.uniform(0.0, 0.6, n_clot // 2),
-                          rng.uniform(*touch, n_clot - n_clot // 2)])
-    phi = rng.uniform(0, 2 * np.pi, n_clot)
-    clot = np.stack([rho * np.cos(phi), rho * np.sin(phi), rng.uniform(-0.6, 0.4, n_clot)], 1)
-    frames = [np.concatenate([vessel, clot + [0.0, 0.0, i * speed], np.zeros((n_pad, 3))])
-              for i in range(3)]
-    nt = np.array([NodeType.VESSEL] * len(vessel) + [NodeType.CLOT] * n_clot
-                  + [NodeType.VESSEL] * n_pad, np.int32)
-    mask = np.arange(len(frames[0])) < len(vessel) + n_clot
-    return np.asarray(frames, np.float32), nt, mask, rho
+    return tube_window(seed, n_clot, n_pad, speed, touch)
 
 
 def _radial(x):
