@@ -474,3 +474,10 @@ def tube_window(seed=0, n_clot=40, n_pad=4, speed=0.05, touch=(0.95, 0.99), inne
                   + [NodeType.VESSEL] * n_pad, np.int32)
     mask = np.arange(len(frames[0])) < len(vessel) + n_clot
     return np.asarray(frames, np.float32), nt, mask, rho
+
+
+def radial(x):
+    """``[N, 3]``: the unit vectors from the z axis to the points ``x`` in their xy plane (the
+    outward normal of :func:`tube_window`'s wall)."""
+    r = np.linalg.norm(x[:, :2], axis=1, keepdims=True)
+    return np.concatenate([x[:, :2] / r, np.zeros((len(x), 1))], 1)

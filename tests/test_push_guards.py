@@ -10,7 +10,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from dataset_factory import train_tiny_cli, tube_window, window_batch
+from dataset_factory import radial, train_tiny_cli, tube_window, window_batch
 
 from thrombojax.errors import ConfigError
 from thrombojax.graph.wall_nodes import local_wall_plane
@@ -34,18 +34,13 @@ def _tube(n_frames=5, n_clot=40, speed=0.05, seed=0):
                        n_frames=n_frames)
 
 
-def _radial(x):
-    r = np.linalg.norm(x[:, :2], axis=1, keepdims=True)
-    return np.concatenate([x[:, :2] / r, np.zeros((len(x), 1))], 1)
-
-
 def test_containment_puts_back_what_crossed_the_wall_and_leaves_the_rest():
     frames, nt, mask, rho = _tube()
     truth = frames[2]
     clot = np.flatnonzero(nt == NodeType.CLOT)
     rim, deep = clot[rho >= 0.9], clot[rho < 0.5]
     out = truth.copy()
-    out[clot] += 0.2 * _radial(truth[clot])  # the rim nodes end about 0.1 outside the wall
+    out[clot] += 0.2 * radial(truth[clot])  # the rim nodes end about 0.1 outside the wall
     guards = PushGuards(margin=0.01, tolerance=_LOOSE)
     got = np.asarray(guard_frame(jnp.asarray(out), truth, frames[0], nt, mask, guards))
     before = np.asarray(local_wall_plane(jnp.asarray(out), nt, mask)[0])
@@ -58,7 +53,7 @@ def test_containment_puts_back_what_crossed_the_wall_and_leaves_the_rest():
     np.testing.assert_array_equal(got[nt == NodeType.VESSEL], out[nt == NodeType.VESSEL])
     # a node the truth has as far out (the clot past an open end) is left there
     far = truth.copy()
-    far[rim] += 0.2 * _radial(truth[rim])
+    far[rim] += 0.2 * radial(truth[rim])
     kept = np.asarray(guard_frame(jnp.asarray(far), far, frames[0], nt, mask, guards))
     np.testing.assert_allclose(kept, far, atol=1e-6)
 

@@ -12,7 +12,7 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 import pytest
-from dataset_factory import tube_window, window_batch
+from dataset_factory import radial, tube_window, window_batch
 
 from thrombojax.errors import ConfigError
 from thrombojax.graph.wall_nodes import local_wall_plane
@@ -37,11 +37,6 @@ def _tube_window(seed=0, n_clot=40, n_pad=4, speed=0.05, touch=(0.95, 0.99)):
     return tube_window(seed, n_clot, n_pad, speed, touch)
 
 
-def _radial(x):
-    r = np.linalg.norm(x[:, :2], axis=1, keepdims=True)
-    return np.concatenate([x[:, :2] / r, np.zeros((len(x), 1))], 1)
-
-
 def test_the_excess_is_zero_on_the_truth_and_inside_and_the_outward_move_beyond_the_truth():
     frames, nt, mask, rho = _tube_window()
     truth = frames[2]
@@ -52,13 +47,13 @@ def test_the_excess_is_zero_on_the_truth_and_inside_and_the_outward_move_beyond_
     assert float(jnp.abs(excess(jnp.asarray(truth))).max()) == 0.0
     # every clot node moved 0.2 inward: no excess, however wrong the prediction
     inward = truth.copy()
-    inward[clot] -= 0.2 * _radial(truth[clot])
+    inward[clot] -= 0.2 * radial(truth[clot])
     assert float(jnp.abs(excess(jnp.asarray(inward))).max()) == 0.0
     # the nodes at the wall moved 0.1 outward: they cross it by about 0.1 - (1 - rho), the
     # truth's own signed distance being negative (inside); the deep nodes moved as far stay in
     out = truth.copy()
-    out[wall] += 0.1 * _radial(truth[wall])
-    out[deep] += 0.1 * _radial(truth[deep])
+    out[wall] += 0.1 * radial(truth[wall])
+    out[deep] += 0.1 * radial(truth[deep])
     got = np.asarray(excess(jnp.asarray(out)))
     # by definition: the signed distances of local_wall_plane, the truth's floored at 0
     signed = np.asarray(local_wall_plane(jnp.asarray(out), nt, mask)[0])
@@ -82,11 +77,11 @@ def test_its_gradient_points_along_the_outward_normal():
     clot = np.flatnonzero((nt == NodeType.CLOT) & mask)
     wall = clot[rho >= 0.95]
     out = truth.copy()
-    out[wall] += 0.1 * _radial(truth[wall])
+    out[wall] += 0.1 * radial(truth[wall])
     grad = np.asarray(jax.grad(lambda x: wall_sum(x[None], jnp.asarray(truth)[None], nt, mask,
                                                   _STATS))(jnp.asarray(out)))
     g = grad[wall]
-    cos = np.sum(g * _radial(out[wall]), 1) / np.linalg.norm(g, axis=1)
+    cos = np.sum(g * radial(out[wall]), 1) / np.linalg.norm(g, axis=1)
     assert (cos > 0.98).all()  # descent moves the node back in, along the wall's normal
     assert np.abs(np.delete(grad, wall, axis=0)).max() == 0.0
 
