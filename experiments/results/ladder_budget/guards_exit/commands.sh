@@ -126,3 +126,18 @@ python $CE --nodes 2048 $OUT/clotentry_heldout data/clotentry.h5 clotentry_008,c
 python $CE --nodes 2048 --sims-kind "validation simulation" $OUT/clotentry_validation data/clotentry.h5 clotentry_007 \
     "ClotEntry, validation: the four seeds 13-16 as one ensemble, guarded at auto (0.376 r) and with the velocity kept through containment (wallvel)" \
     ce_e4_auto=$E4:guards,tolerance_r=$CAUTO ce_e4_wallvel=$E4:guards,tolerance_r=$CAUTO,keep_velocity_wall=1
+
+# 3b. (the next session, same machine and files) The ClotEntry ensemble with containment only
+# (coherence off), held out and validation. Measured into /work/exp/s98/ce_heldout and
+# ce_validation (the commands their JSONs record), copied here; the commands below, with every
+# row there, wrote the tables.
+python $CE --nodes 2048 $OUT/clotentry_heldout data/clotentry.h5 clotentry_008,clotentry_009 \
+    "ClotEntry, held out: the outlet recipe's 2-epoch seeds 13 and 15 and the four seeds 13-16 as one ensemble, guarded at auto (0.376 r) as by default and with the next step reading the velocity from before containment (wallvel, keep_velocity_wall); the ensemble with containment only (contain)" \
+    ce_s13_auto=$R/ce_out_s13:guards,tolerance_r=$CAUTO ce_s13_wallvel=$R/ce_out_s13:guards,tolerance_r=$CAUTO,keep_velocity_wall=1 \
+    ce_s15_auto=$R/ce_out_s15:guards,tolerance_r=$CAUTO ce_s15_wallvel=$R/ce_out_s15:guards,tolerance_r=$CAUTO,keep_velocity_wall=1 \
+    ce_e4_auto=$E4:guards,tolerance_r=$CAUTO ce_e4_wallvel=$E4:guards,tolerance_r=$CAUTO,keep_velocity_wall=1 \
+    ce_e4_contain=$E4:guards,coherence=0
+python $CE --nodes 2048 --sims-kind "validation simulation" $OUT/clotentry_validation data/clotentry.h5 clotentry_007 \
+    "ClotEntry, validation: the four seeds 13-16 as one ensemble, guarded at auto (0.376 r), with the velocity kept through containment (wallvel) and with containment only (contain)" \
+    ce_e4_auto=$E4:guards,tolerance_r=$CAUTO ce_e4_wallvel=$E4:guards,tolerance_r=$CAUTO,keep_velocity_wall=1 \
+    ce_e4_contain=$E4:guards,coherence=0
