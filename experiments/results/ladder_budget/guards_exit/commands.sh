@@ -104,6 +104,33 @@ wait
 L4=$L4,outlet_e4_contain,outlet_e4_containvel,outlet_e4_pull_contain,outlet_e4_pull_containvel
 python experiments/results/ladder_budget/bendvessel_speed_noise/track_table.py --force --out $OUT/track.md \
     $OUT/heldout $L,$L4 $OUT/validation $L,$L4
+# 1e. (the next session) Two more seeds of the outlet recipe (4 and 5, 37 epochs, side by side,
+# 53.7-54.1 minutes each, slowed by ClotEntry rollouts and tests run beside them at times; their
+# config.json, metrics.jsonl and loss.png in training/), rolled out at auto, wallvel and alone,
+# and the six seeds 0-5 as one ensemble (e6) at auto, wallvel, alone, alone with the pull, and
+# with containment only (contain, containvel). Measured into /work/exp/s98/e6_heldout and
+# e6_validation (the commands their JSONs record), copied here; the commands below, with every
+# row there, wrote the tables.
+S=/work/exp/s98
+for s in 4 5; do
+    thrombojax train --config $ROOM --dataset data/bendvessel.h5 --seed $s --outlet-features 2 \
+        --out $S/bv_outlet_s$s &
+done; wait
+E6=$E4+$S/bv_outlet_s4+$S/bv_outlet_s5
+for s in 4 5; do
+    ROWS4="$ROWS4 outlet_s${s}_auto=$S/bv_outlet_s$s:guards,tolerance_r=$AUTO outlet_s${s}_wallvel=$S/bv_outlet_s$s:guards,tolerance_r=$AUTO,keep_velocity_wall=1 outlet_s${s}_alone=$S/bv_outlet_s$s"
+done
+ROWS4="$ROWS4 outlet_e6_auto=$E6:guards,tolerance_r=$AUTO outlet_e6_wallvel=$E6:guards,tolerance_r=$AUTO,keep_velocity_wall=1 outlet_e6_alone=$E6"
+ROWS4="$ROWS4 outlet_e6_pull_alone=$E6:alone,centre_pull=0.5,centre_tolerance_r=0 outlet_e6_contain=$E6:guards,coherence=0 outlet_e6_containvel=$E6:guards,coherence=0,keep_velocity_wall=1"
+python $CE $OUT/heldout data/bendvessel.h5 bendvessel_005,bendvessel_012,bendvessel_019 \
+    "$TITLE; seeds 2-5 and the ensembles of seeds 0-3 (e4) and 0-5 (e6) at auto, wallvel and alone, with the centring pull 0.5 set at rollout time (pull), and with containment only (contain), that with the velocity kept through containment (containvel)" $ROWS $ROWS4 &
+python $CE --sims-kind "validation simulation" $OUT/validation data/bendvessel.h5 bendvessel_009 \
+    "BendVessel, validation: the same rows" $ROWS $ROWS4 &
+wait
+L4=$L4,outlet_s4_auto,outlet_s5_auto,outlet_e6_auto,outlet_s4_wallvel,outlet_s5_wallvel,outlet_e6_wallvel
+L4=$L4,outlet_s4_alone,outlet_s5_alone,outlet_e6_alone,outlet_e6_pull_alone,outlet_e6_contain,outlet_e6_containvel
+python experiments/results/ladder_budget/bendvessel_speed_noise/track_table.py --force --out $OUT/track.md \
+    $OUT/heldout $L,$L4 $OUT/validation $L,$L4
 
 # 2. When the true clot passes the open end (no model)
 python $OUT/past_end.py data/bendvessel.h5 --held-out bendvessel_005,bendvessel_012,bendvessel_019 \
