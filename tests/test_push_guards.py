@@ -10,12 +10,10 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
-from dataset_factory import radial, train_tiny_cli, tube_window, window_batch
+from dataset_factory import radial, tiny_mgn_step, train_tiny_cli, tube_window, window_batch
 
 from thrombojax.errors import ConfigError
 from thrombojax.graph.wall_nodes import local_wall_plane
-from thrombojax.models.registry import create_model, get_config
-from thrombojax.simulator.step import make_step
 from thrombojax.train.config import TrainConfig
 from thrombojax.train.loss import window_loss_terms
 from thrombojax.train.push_guards import PushGuards, guard_frame, guard_inputs, guarded_push
@@ -75,8 +73,7 @@ def test_coherence_pulls_a_deformed_clot_to_within_the_tolerance_of_its_rest_sha
 
 
 def _model_and_window():
-    step = make_step(create_model("mgn", get_config("mgn", tiny=True, max_neighbors=8,
-                                                    radius=0.45)))
+    step = tiny_mgn_step()
     frames, nt, mask, _ = _tube(seed=1)
     batch = window_batch([(frames, nt, mask)])
     params = init_state(step, make_optimizer(1e-3), jax.random.PRNGKey(0), batch).params

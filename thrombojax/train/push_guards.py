@@ -112,8 +112,7 @@ def guarded_push(step, params: dict, stats, frames: jax.Array, rest: jax.Array,
         key = None if rng is None else jax.random.fold_in(rng, j)
         out = step(params, stats, step.previous(seq, seq.shape[0] - 1, rest), seq[-1],
                    node_type, mask, train=train, rng=key)
-        nxt = guard_frame(jax.lax.stop_gradient(out.positions), frames[h + 1 + j], rest,
-                          node_type, mask, guards)
+        nxt = guard_frame(out.positions, frames[h + 1 + j], rest, node_type, mask, guards)
         seq = jnp.concatenate([seq, nxt[None]])
     return jax.lax.stop_gradient(seq[h + 1:])
 
