@@ -85,7 +85,7 @@ def evaluate_runs(runs: list[pathlib.Path], data: str, guards: bool,
         full, full_nt = scaled_simulation(ds, name, trained.scaling)
         idx = subsample_indices(0, full_nt, n_nodes or len(full_nt))  # the study's 2,048
         pos, nt = full[:, idx], full_nt[idx]
-        m1 = ensemble_single_step_errors(step, params, trained.stats, pos, nt)
+        m1 = ensemble_single_step_errors(step, params, trained.stats, pos, nt, start_from=skip)
         c1 = single_step_errors(cv, {}, identity_stats(), pos, nt)
         phase = np.arange(1, pos.shape[0] - 1) >= skip
         n = pos.shape[0] - 1 - skip

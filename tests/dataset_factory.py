@@ -481,3 +481,27 @@ def radial(x):
     outward normal of :func:`tube_window`'s wall)."""
     r = np.linalg.norm(x[:, :2], axis=1, keepdims=True)
     return np.concatenate([x[:, :2] / r, np.zeros((len(x), 1))], 1)
+
+
+def numbered_store(n_frames: int, n_nodes: int = 40, n_vessel: int = 10, length: int = 3):
+    """The :class:`~thrombojax.data.batching.WindowStore` of one simulation ``"a"`` whose node
+    ``i`` of frame ``t`` sits at ``(i, t, 0)`` (``n_vessel`` vessel nodes first, then clot
+    nodes; unit scaling), so a batch's frames and nodes can be read off its coordinates."""
+    from thrombojax.data.batching import load_store
+    from thrombojax.data.scaling import Scaling
+    from thrombojax.types import NodeType
+
+    pos = np.zeros((n_frames, n_nodes, 3), np.float32)
+    pos[:, :, 0] = np.arange(n_nodes)[None]
+    pos[:, :, 1] = np.arange(n_frames)[:, None]
+    types = np.array([NodeType.VESSEL] * n_vessel + [NodeType.CLOT] * (n_nodes - n_vessel),
+                     np.int8)
+
+    class _Data:  # the two fields load_store reads
+        def positions(self, name):
+            return pos
+
+        def node_type(self, name):
+            return types
+
+    return load_store(_Data(), ["a"], Scaling(center=np.zeros(3), scale=1.0), length=length)

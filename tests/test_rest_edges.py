@@ -106,23 +106,11 @@ def test_the_step_reads_the_rest_state_and_a_rollout_carries_it():
 def test_batches_lead_with_the_rest_frame_of_the_same_nodes():
     """``make_batch(..., rest=True)``: every window led by its simulation's frame 0, of the
     same subsampled nodes (here node ``i`` of frame ``t`` sits at ``(i, t, 0)``)."""
-    from thrombojax.data.batching import load_store, make_batch
-    from thrombojax.data.scaling import Scaling
+    from dataset_factory import numbered_store
 
-    n, frames = 40, 7
-    pos = np.zeros((frames, n, 3), np.float32)
-    pos[:, :, 0] = np.arange(n)[None]
-    pos[:, :, 1] = np.arange(frames)[:, None]
-    types = np.array([NodeType.VESSEL] * 10 + [NodeType.CLOT] * 30, np.int8)
+    from thrombojax.data.batching import make_batch
 
-    class _Data:  # the two fields load_store reads
-        def positions(self, name):
-            return pos
-
-        def node_type(self, name):
-            return types
-
-    store = load_store(_Data(), ["a"], Scaling(center=np.zeros(3), scale=1.0), length=3)
+    store = numbered_store(7)
     entries = np.array([[2, 0], [4, 0]])
     plain = make_batch(store, entries, 64, nodes_per_sample=20, seed=1)
     rest = make_batch(store, entries, 64, nodes_per_sample=20, seed=1, rest=True)

@@ -220,6 +220,10 @@ def _add_train(sub) -> None:
     p.add_argument("--rest-edges", action="store_true", default=None, help="meshgraphnet: "
                    "give clot-clot edges their displacement in the clot's rest state (the "
                    "simulation's first frame) beside the current one, so the step sees strain")
+    p.add_argument("--start-speed", action="store_true", default=None, help="the step also "
+                   "reads the clot's start speed: its speed in the true frames a rollout starts "
+                   "from (the dataset's skip_frames in training), kept for the whole rollout, so "
+                   "the step knows the simulation's speed without carrying its own errors")
     p.add_argument("--wall-signed", action="store_true", default=None, help="with "
                    "--wall-features: the features are the signed distance to the wall "
                    "(positive outside) and its outward normal, which tell a node that crossed "

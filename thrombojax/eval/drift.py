@@ -48,7 +48,7 @@ import numpy as np
 from thrombojax.errors import ConfigError
 from thrombojax.eval.metrics import clot_centroids
 from thrombojax.eval.single_step import batched_next
-from thrombojax.simulator.previous import history_frames, lead_with_rest, rest_frame
+from thrombojax.simulator.previous import history_frames, lead_count, lead_with_rest
 from thrombojax.simulator.step import LearnedStep
 from thrombojax.train.noise import rotation_matrix
 from thrombojax.types import TargetStats, clot_mask
@@ -320,15 +320,17 @@ def _per_frame(step, params, stats, positions, node_type, mask, frames, what, mo
 
 
 def _split_rest(step, given):
-    """``(rest frame or None, the frames before t)`` of a step's ``x_prev`` as float32: the
-    carries perturb the frames before t and never the clot's rest state."""
+    """``(lead frames or None, the frames before t)`` of a step's ``x_prev`` as float32: the
+    carries perturb the frames before t and never the clot's rest state or start frames."""
     given = np.asarray(given, np.float32)
-    return (rest_frame(step.rest_edges, given),
-            history_frames(step.history, step.rest_edges, given))
+    start = getattr(step, "start_speed", False)
+    lead = lead_count(step.rest_edges, start)
+    return (given[..., :lead, :, :] if lead else None,
+            history_frames(step.history, step.rest_edges, given, start))
 
 
 def _join_rest(rest, frames):
-    """The ``x_prev`` of the frames before t (``[H, N, 3]`` or ``[N, 3]``) and a rest frame."""
+    """The ``x_prev`` of the frames before t (``[H, N, 3]`` or ``[N, 3]``) and lead frames."""
     return frames if rest is None else lead_with_rest(rest, frames)
 
 

@@ -177,6 +177,7 @@ def single_step_errors(
     *,
     skip: int = 0,
     batch_size: int = 8,
+    start_from: int | None = None,
 ) -> np.ndarray:
     """Teacher-forced one-step MSE over clot nodes for every window of one simulation.
 
@@ -186,11 +187,15 @@ def single_step_errors(
         positions: ``[T, N, 3]`` scaled positions. node_type: ``[N]`` NodeType values.
         skip: middle frames ``t < skip`` are not evaluated.
         batch_size: windows per compiled call (the last chunk is padded, not truncated).
+        start_from: for a step that reads the clot's start speed
+            (:mod:`thrombojax.simulator.start_speed`), window ``t`` reads the start speed of frame
+            ``min(t, start_from)``, the frame the dataset's rollouts start from, as in training
+            (None: of ``t``).
     Returns:
         ``[n_windows]`` MSE per window ``t = max(skip, 1) .. T - 2``.
     """
     return ensemble_single_step_errors(step, [params], stats, positions, node_type, skip=skip,
-                                       batch_size=batch_size)
+                                       batch_size=batch_size, start_from=start_from)
 
 
 def ensemble_single_step_errors(
@@ -202,6 +207,7 @@ def ensemble_single_step_errors(
     *,
     skip: int = 0,
     batch_size: int = 8,
+    start_from: int | None = None,
 ) -> np.ndarray:
     """:func:`single_step_errors` of the member mean of M models (a deep ensemble's one-step
     prediction: every member predicts s_{t+1} from the true s_{t-1}, s_t; the M predictions
@@ -212,7 +218,8 @@ def ensemble_single_step_errors(
 
     Args:
         params_list: M >= 1 parameter trees sharing ``step`` and ``stats``.
-        step, stats, positions, node_type, skip, batch_size: as in :func:`single_step_errors`.
+        step, stats, positions, node_type, skip, batch_size, start_from: as in
+            :func:`single_step_errors`.
     Returns:
         ``[n_windows]`` MSE of the mean prediction per window.
     """
@@ -229,7 +236,8 @@ def ensemble_single_step_errors(
     for lo in range(0, times.size, batch_size):
         t = times[lo:lo + batch_size]
         t_pad = np.concatenate([t, np.full(batch_size - t.size, t[-1])])
-        preds = [np.asarray(batched_next(step, params, stats, step.previous(positions, t_pad),
+        x_prev = step.previous(positions, t_pad, start_from=start_from)
+        preds = [np.asarray(batched_next(step, params, stats, x_prev,
                                          positions[t_pad], jnp.asarray(node_type), mask))
                  for params in params_list]
         nxt = preds[0] if len(preds) == 1 else np.mean(preds, axis=0)
@@ -272,7 +280,7 @@ def single_step_by_phase(
         ``summary`` is :func:`phase_summary`.
     """
     m = single_step_errors(step, params, stats, positions, node_type, skip=skip,
-                           batch_size=batch_size)
+                           batch_size=batch_size, start_from=skip_frames)
     b = single_step_errors(_cv_step(), {}, identity_stats(), positions, node_type, skip=skip,
                            batch_size=batch_size)
     times = np.arange(max(skip, 1), positions.shape[0] - 1)

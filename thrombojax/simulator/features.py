@@ -18,7 +18,9 @@ appends, in this order and each only when the step has it:
 6. the distance from the clot's centroid to the nearest vessel node, on every clot node
    (``clearance_radius > 0``; :func:`thrombojax.graph.clearance.clot_clearance`);
 7. the width of the vessel's cross-section at the clot's centroid, on every clot node
-   (``section_radius > 0``; :func:`thrombojax.graph.section.clot_section_features`).
+   (``section_radius > 0``; :func:`thrombojax.graph.section.clot_section_features`);
+8. the clot's start speed, its speed in the true frames its rollout starts from, on every clot node
+   (``start_speed``; :func:`thrombojax.simulator.start_speed.start_speed_feature`).
 """
 
 from __future__ import annotations
@@ -32,7 +34,8 @@ from thrombojax.graph.section import clot_section_features
 from thrombojax.graph.vessel_axis import axis_velocity_features, outlet_features
 from thrombojax.graph.wall_nodes import clot_wall_mean, signed_wall_features, wall_node_features
 from thrombojax.simulator.kinematics import past_accelerations
-from thrombojax.simulator.previous import history_frames
+from thrombojax.simulator.previous import history_frames, start_frames
+from thrombojax.simulator.start_speed import start_speed_feature
 
 __all__ = ["extra_features"]
 
@@ -42,14 +45,15 @@ def extra_features(step, stats, x_prev, x_cur, node_type, mask, velocity_scale, 
     :class:`~thrombojax.simulator.step.LearnedStep`) at frame t, or None when it has none.
 
     ``x_prev`` is the step's ``x_prev`` (``[H, N, 3]`` with history, led by the rest frame
-    with ``rest_edges``), ``x_cur`` s_t, both in
+    with ``rest_edges`` and the start frames with ``start_speed``), ``x_cur`` s_t, both in
     the coordinates of the model's inputs; ``stats`` None (initialisation) gives unit scales;
     ``axes`` is :func:`~thrombojax.simulator.context.shared_axes` of ``x_cur``.
     """
     last = step.last_previous(x_prev)
     extra = []
     if step.history > 1:
-        feats = past_accelerations(history_frames(step.history, step.rest_edges, x_prev), x_cur,
+        feats = past_accelerations(history_frames(step.history, step.rest_edges, x_prev,
+                                                  step.start_speed), x_cur,
                                    mask, 1.0 if stats is None else
                                    jnp.sqrt(jnp.mean(stats.std ** 2)))
         extra.append(jax.lax.stop_gradient(feats) if step.stop_history_gradient else feats)
@@ -70,4 +74,7 @@ def extra_features(step, stats, x_prev, x_cur, node_type, mask, velocity_scale, 
         extra.append(clot_clearance(x_cur, node_type, mask, scale=step.clearance_radius))
     if step.section_radius > 0:
         extra.append(clot_section_features(x_cur, node_type, mask, scale=step.section_radius))
+    if step.start_speed:
+        extra.append(start_speed_feature(start_frames(step.rest_edges, x_prev), node_type, mask,
+                                  velocity_scale))
     return jnp.concatenate(extra, axis=-1) if extra else None

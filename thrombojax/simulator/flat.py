@@ -42,7 +42,7 @@ def flat_batch_ok(step: LearnedStep) -> bool:
     """Whether the step's surrogate gives the same outputs on a flat batch graph (and the step
     reads one previous frame: the flat step does not carry a history)."""
     return (bool(getattr(step.model, "graph_local", False)) and step.history == 1
-            and not step.rest_edges)
+            and not step.rest_edges and not step.start_speed)
 
 
 def flatten_graphs(graphs: NeighborList) -> NeighborList:
@@ -77,10 +77,11 @@ class FlatStep:
     step: LearnedStep
 
     def __post_init__(self) -> None:
-        if self.step.history != 1 or self.step.rest_edges:
+        if self.step.history != 1 or self.step.rest_edges or self.step.start_speed:
             raise ConfigError(f"the flat batch graph runs steps with one previous frame; this "
                               f"step reads history = {self.step.history}"
-                              f"{' and the rest state' if self.step.rest_edges else ''}: batch "
+                              f"{' and the rest state' if self.step.rest_edges else ''}"
+                              f"{' and the start frames' if self.step.start_speed else ''}: batch "
                               f"it with jax.vmap instead (flat_batch=False)")
         if not flat_batch_ok(self.step):
             raise ConfigError(f"model '{self.step.name}' mixes the nodes of a sample outside its "

@@ -50,7 +50,8 @@ trajectory, :meth:`LearnedStep.shift` advances them in a rollout); ``H = 1`` kee
 ``[n_nodes, 3]`` = s_{t-1}. ``make_step(model, rest_edges=True)`` also reads the clot's rest
 state, the simulation's first frame, at the head of ``x_prev``
 (:mod:`thrombojax.simulator.previous`), and MeshGraphNet's clot-clot edges get their rest-state
-displacement beside the current one (DeepMind's deforming-plate model).
+displacement beside the current one (DeepMind's deforming-plate model). ``start_speed=True``:
+also the clot's start speed (:mod:`thrombojax.simulator.start_speed`).
 
 Prior: ``make_step(model, prior_radius=w)`` adds the vessel-following prior to constant
 velocity, and the model learns the rest (:mod:`thrombojax.simulator.step_options`).
@@ -59,12 +60,9 @@ Rollout context: the vessel is rigid, so ``step.context(x0, node_type, mask)`` s
 once (:mod:`thrombojax.simulator.context`) and every rollout's ``step(..., context=...)`` reads it.
 
 Full resolution: ``make_step(model, grid=spec)`` carries a static cell-grid
-:class:`~thrombojax.graph.grid.GridSpec` to the model's radius search, which uses it where it pays
-(``N >= AUTO_GRID_MIN_NODES`` and fewer candidates than the dense search,
-:func:`thrombojax.graph.neighbors.radius_graph`) and the dense search elsewhere (small clouds are
-unchanged bit for bit). :attr:`StepOutput.overflow` reports a grid buffer that was too small; the
-host sizes the spec from the data and re-allocates on overflow
-(:mod:`thrombojax.simulator.grid_step`); consumers that do not check it refuse a grid step.
+:class:`~thrombojax.graph.grid.GridSpec` to the model's radius search (where it pays,
+:func:`thrombojax.graph.neighbors.radius_graph`); :attr:`StepOutput.overflow` reports a grid
+buffer that was too small (:mod:`thrombojax.simulator.grid_step`).
 """
 
 from __future__ import annotations
@@ -168,6 +166,8 @@ class LearnedStep:
         rest_edges: the step also reads the clot's rest state (``x_prev`` led by the
             simulation's first frame, :mod:`thrombojax.simulator.previous`) and the model's
             edges get their rest-state displacement (a model that reads edge features only).
+        start_speed: the step also reads the clot's speed in two true frames a rollout keeps
+            (``x_prev`` holds them after the rest frame, :mod:`thrombojax.simulator.start_speed`).
     """
 
     model: Surrogate
@@ -189,29 +189,33 @@ class LearnedStep:
     centre_pull: float = 0.0
     centre_unit: float = 0.0
     centre_tolerance: float = 0.0
+    start_speed: bool = False
 
     def __post_init__(self) -> None:
         check_step_options(self)
 
-    def previous(self, positions, t, rest=None):
+    def previous(self, positions, t, rest=None, start_from=None):
         """The ``x_prev`` of frame(s) ``t >= 1`` (int or int array) of a trajectory ``positions
-        [T, n_nodes, 3]`` (:func:`thrombojax.simulator.previous.previous`; ``rest``: the rest
-        frame when ``positions`` does not start at the simulation's first frame)."""
-        return prev.previous(self.history, self.rest_edges, positions, t, rest)
+        [T, n_nodes, 3]`` (:func:`thrombojax.simulator.previous.previous`; ``rest``: the lead
+        frames when ``positions`` does not start at the simulation's first frame;
+        ``start_from``: the start speed of frame ``min(t, start_from)``, None: of ``t``)."""
+        return prev.previous(self.history, self.rest_edges, positions, t, rest,
+                             start_speed=self.start_speed, start_from=start_from)
 
     def last_previous(self, x_prev: jax.Array) -> jax.Array:
         """s_{t-1} of an ``x_prev`` (see :meth:`previous`)."""
-        return prev.last_previous(self.history, self.rest_edges, x_prev)
+        return prev.last_previous(self.history, self.rest_edges, x_prev, self.start_speed)
 
     def shift(self, x_prev: jax.Array, x_cur: jax.Array) -> jax.Array:
-        """The ``x_prev`` of the next step: the rest frame kept, the last H frames moved on."""
-        return prev.shift(self.history, self.rest_edges, x_prev, x_cur)
+        """The ``x_prev`` of the next step: the lead frames kept, the last H frames moved on."""
+        return prev.shift(self.history, self.rest_edges, x_prev, x_cur, self.start_speed)
 
     def check_previous(self, x_prev, n_nodes: int, what: str) -> None:
         """Raise :class:`ConfigError` if ``x_prev`` does not have this step's history shape."""
-        want = prev.previous_shape(self.history, self.rest_edges, n_nodes)
+        want = prev.previous_shape(self.history, self.rest_edges, n_nodes, self.start_speed)
         if tuple(np.shape(x_prev)) != want:
-            rest = " and the rest frame" if self.rest_edges else ""
+            rest = (" and the rest frame" if self.rest_edges else "") + (
+                " and the start frames" if self.start_speed else "")
             raise ConfigError(f"{what}: the step reads {self.history} previous frame(s){rest}, "
                               f"so x_prev must be {want}, got {tuple(np.shape(x_prev))}")
 
@@ -380,7 +384,8 @@ def make_step(model: Surrogate, frame: str = "global", wall_cutoff: float = 0.0,
               outlet_radius: float = 0.0, shape_radius: float = 0.0,
               rest_edges: bool = False, clearance_radius: float = 0.0,
               section_radius: float = 0.0, centre_pull: float = 0.0,
-              centre_unit: float = 0.0, centre_tolerance: float = 0.0) -> LearnedStep:
+              centre_unit: float = 0.0, centre_tolerance: float = 0.0,
+              start_speed: bool = False) -> LearnedStep:
     """The learned simulator of a surrogate in ``frame`` with the options of
     :class:`LearnedStep` (the radii are scaled lengths, 0: off; see the module docstring)."""
     return LearnedStep(model=model, frame=frame, grid=grid, history=history,
@@ -392,4 +397,4 @@ def make_step(model: Surrogate, frame: str = "global", wall_cutoff: float = 0.0,
                        shape_radius=float(shape_radius), clearance_radius=float(clearance_radius),
                        section_radius=float(section_radius), centre_pull=float(centre_pull),
                        centre_unit=float(centre_unit),
-                       centre_tolerance=float(centre_tolerance))
+                       centre_tolerance=float(centre_tolerance), start_speed=bool(start_speed))

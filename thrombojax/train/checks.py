@@ -106,7 +106,8 @@ def check_train_values(cfg: Any) -> None:
     Also: the memory ``bary_ratio`` asks for even on one window
     (:func:`thrombojax.train.memory.check_train_memory`; the training loop checks again with the
     dataset's sizes), ``tiny``, ``noise_walk``, ``stop_history_gradient``,
-    ``uniform_rotation``, ``rest_edges``, ``input_guards``, ``pushforward_guards`` (only with
+    ``uniform_rotation``, ``rest_edges``, ``start_speed`` (not with the guards of the
+    training), ``input_guards``, ``pushforward_guards`` (only with
     ``pushforward_steps``) and ``wall_signed`` booleans (``wall_signed`` only with
     ``wall_features``), ``history_noise`` only with ``history >= 2``,
     ``model_config`` an object; upper bounds in :data:`_HIGH`.
@@ -122,10 +123,14 @@ def check_train_values(cfg: Any) -> None:
     ), values={"bary_ratio": float(cfg.bary_ratio), "bary_max_neighbors": cfg.bary_max_neighbors})
     for flag in ("tiny", "noise_walk", "stop_history_gradient", "wall_signed", "wall_clot_mean",
                  "uniform_rotation", "rest_edges", "pushforward_guards",
-                 "input_guards"):
+                 "input_guards", "start_speed"):
         if not isinstance(getattr(cfg, flag, False), bool):
             raise ConfigError(f"{_option(flag)} ({flag}) must be true or false, got "
                               f"{getattr(cfg, flag)!r}")
+    if getattr(cfg, "start_speed", False) and (getattr(cfg, "pushforward_guards", False)
+                                                 or getattr(cfg, "input_guards", False)):
+        raise ConfigError("--start-speed (start_speed) does not go with --pushforward-guards "
+                          "or --input-guards (their windows are led by the rest frame alone)")
     if getattr(cfg, "centre_pull", 0.0) > 0 and not getattr(cfg, "follow_axis", 0.0) > 0:
         raise ConfigError("--centre-pull (centre_pull) needs --follow-axis W > 0 (it tilts the "
                           "velocities of the vessel-following prior)")

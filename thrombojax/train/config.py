@@ -196,6 +196,8 @@ class TrainConfig:
             and MeshGraphNet's clot-clot edges get their rest-state displacement beside the
             current one, so the step sees each edge's strain (DeepMind's deforming plate;
             :mod:`thrombojax.simulator.previous`); every training window carries one more frame.
+        start_speed: the step also reads the clot's start speed, its speed in the true frames a
+            rollout starts from (:mod:`thrombojax.simulator.start_speed`); two more frames a window.
         history: frames before t the learned step reads (1: the velocity alone; H >= 2: also
             the H - 1 accelerations before t, :mod:`thrombojax.simulator.step`); windows grow
             by H - 1 frames.
@@ -270,6 +272,7 @@ class TrainConfig:
     centre_pull: float = 0.0
     centre_tolerance: float | str = 0.0
     rest_edges: bool = False
+    start_speed: bool = False
     wall_signed: bool = False
     wall_clot_mean: bool = False
     history: int = 1

@@ -48,7 +48,7 @@ from thrombojax.errors import ConfigError, OutputError, ThrombojaxError
 from thrombojax.io.hdf5 import open_dataset
 from thrombojax.models.registry import canonical_name, config_to_dict, create_model, get_config
 from thrombojax.simulator.step import make_step
-from thrombojax.study import training_defaults
+from thrombojax.study import skip_frames, training_defaults
 from thrombojax.train.centre_fit import centre_tolerance_of
 from thrombojax.train.checks import check_dense_inputs, uses_vessel_radius
 from thrombojax.train.config import RunConfig, TrainConfig, load_config_file
@@ -219,10 +219,11 @@ def train(
     check_dense_inputs(cfg, budget, where=str(dataset_path))
     # training windows led by the rest frame
     lead = cfg.rest_edges or cfg.pushforward_guards or cfg.input_guards
+    start_speed = (skip_frames(ds), cfg.history) if cfg.start_speed else None  # 2 lead frames
     check_train_memory(estimate_train_memory(
         n_windows=len(train_store), n_val_windows=len(val_store) if val_store else 0,
         bary_ratio=cfg.bary_ratio, batch_size=batch_size, budget=budget,
-        length=length + lead, max_neighbors=cfg.bary_max_neighbors,
+        length=length + lead + 2 * bool(start_speed), max_neighbors=cfg.bary_max_neighbors,
     ), values={k: getattr(cfg, k) for k in _MEMORY_OPTIONS}, where=str(dataset_path))
     plan_of = functools.partial(epoch_plan, len(train_store), bary_ratio=cfg.bary_ratio,
                                 batch_size=batch_size, seed=cfg.seed)
@@ -231,7 +232,8 @@ def train(
     schedule = make_schedule(lr, total_steps, round(cfg.warmup_epochs * steps_per_epoch))
     tx = make_optimizer(schedule, weight_decay=cfg.weight_decay, grad_clip=cfg.grad_clip)
     batch_of = functools.partial(make_batch, train_store, budget=budget, seed=cfg.seed,
-                                 nodes_per_sample=cfg.nodes_per_sample, rest=lead)
+                                 nodes_per_sample=cfg.nodes_per_sample, rest=lead,
+                                 start_speed=start_speed)
     run_key, init_key = jax.random.split(jax.random.PRNGKey(cfg.seed))
     # radii -> scaled; the radius (possibly a geometric estimate) only when it is needed
     radius = vessel_radius(ds) / float(scaling.scale) if uses_vessel_radius(cfg) else 0.0
@@ -245,6 +247,7 @@ def train(
                         wall_clot_mean=cfg.wall_clot_mean,
                         outlet_radius=cfg.outlet_features * radius,
                         shape_radius=cfg.shape_features * radius, rest_edges=cfg.rest_edges,
+                        start_speed=cfg.start_speed,
                         clearance_radius=cfg.clearance_features * radius,
                         section_radius=cfg.section_features * radius,
                         centre_pull=cfg.centre_pull, centre_unit=radius * (cfg.centre_pull > 0),
@@ -293,7 +296,7 @@ def train(
         return train_steps[k]
 
     eval_step = make_eval_step(step_fn, stats, k=cfg.rollout_steps)
-    val_batches = eval_batches(val_store, budget, batch_size, cfg) if val_store else []
+    val_batches = eval_batches(val_store, budget, batch_size, cfg, start_speed) if val_store else []
     val_rollouts = (functools.partial(val_rollout_metrics, stats=stats, radius=radius, sims=(
         prepare_val_rollouts(ds, split.val, scaling, step_fn, n_nodes=cfg.nodes_per_sample,
                              seed=cfg.seed))) if cfg.select_by == "rollout" else None)

@@ -94,7 +94,8 @@ def window_loss_terms(
             (:mod:`thrombojax.train.wall_loss`; static: off, no wall search is compiled).
         rest: ``[n_nodes, 3]`` the clot's rest state (the simulation's first frame), which a
             step with ``rest_edges`` reads (required then: a window starts later), and the
-            push-forward guards' coherence holds the clot to.
+            push-forward guards' coherence holds the clot to; for a step with ``start_speed``, the
+            window's lead frames ``[L, n_nodes, 3]`` (the rest frame, then the start frames).
         push_guards: guard every push-forward step's prediction before the next step reads it
             (:mod:`thrombojax.train.push_guards`; static; needs ``pushforward >= 1`` and
             ``rest``). ``None``: the plain push-forward.
@@ -148,8 +149,9 @@ def _predict(step, params, stats, frames, node_type, mask, *, k, pushforward, tr
     frames lead with the window axis ``W``; ``rest``: the rest frame (``rest_edges``)."""
     step.require_dense("the training loss")
     h = step.history
-    if getattr(step, "rest_edges", False) and rest is None:
-        raise ValueError("the step reads the rest state: a training window needs its rest frame")
+    if (getattr(step, "rest_edges", False) or getattr(step, "start_speed", False)) and rest is None:
+        raise ValueError("the step reads the rest state or the clot's start speed: a training "
+                         "window needs its lead frames")
 
     need = pushforward + k + h + 1
     if k < 1 or pushforward < 0 or frames.shape[0] < need:

@@ -2,31 +2,28 @@
 
 ``train_step(state, batch, rng) -> (state, metrics)``: per sample (``jax.vmap`` over the windows)
 optional training noise, then the learned step of :mod:`thrombojax.simulator.step` once or ``k``
-times (:mod:`thrombojax.train.loss`), masked losses; the losses are pooled
-over all clot nodes of the batch (``sum / count``), differentiated and applied with the optax
-transformation (AdamW, warm-up + cosine, optional clipping: :mod:`thrombojax.train.schedule`).
+times (:mod:`thrombojax.train.loss`), masked losses pooled over all clot nodes of the batch
+(``sum / count``), differentiated and applied with the optax transformation (AdamW, warm-up +
+cosine, optional clipping: :mod:`thrombojax.train.schedule`).
 ``flat_batch=True`` (off by default) runs the model once on the batch as one flat graph instead
-of ``vmap`` over the samples (:mod:`thrombojax.simulator.flat`; same loss and gradients, and no
-faster on the CPU beyond the spread between runs: ``benchmarks/results/flat_batch_cpu.md``).
+of ``vmap`` over the samples (:mod:`thrombojax.simulator.flat`; same loss and gradients, no
+faster on the CPU: ``benchmarks/results/flat_batch_cpu.md``).
 
 Data parallelism: :func:`data_mesh` builds a 1-D mesh ``("data",)`` over the local devices (or all
 devices of all hosts after ``jax.distributed.initialize()``); :func:`shard_batch` places the batch
 with ``NamedSharding(mesh, P("data"))`` on its leading axis and :func:`replicate` the state with
 ``P()``. ``jit`` then partitions the step itself (computation follows data): every device runs
-the model on its slice of the batch, and the pooled sums become one all-reduce, so the loss and
-gradients are those of the whole batch (tested against one device). The batch size must be a
-multiple of the number of devices.
+the model on its slice of the batch, and the pooled sums become one all-reduce: the loss and
+gradients of the whole batch (tested against one device; batch size a multiple of the devices).
 
 Multi-host (a GPU cluster): start the same command on every host, e.g. with SLURM::
 
     srun --nodes=2 --ntasks-per-node=1 thrombojax train --dataset clotentry.h5 --model erwin \\
         --out runs/erwin --distributed
 
-``--distributed`` calls ``jax.distributed.initialize()`` (which reads the coordinator address,
-process count and id from SLURM / Open MPI / the ``JAX_COORDINATOR_ADDRESS``,
-``JAX_NUM_PROCESSES``, ``JAX_PROCESS_ID`` environment variables) before anything else; the mesh
-then spans every device of every host and each host feeds the full (identical, seeded) batch,
-from which :func:`shard_batch` keeps that host's slice.
+``--distributed`` calls ``jax.distributed.initialize()`` (coordinator, process count and id from
+SLURM / Open MPI / ``JAX_COORDINATOR_ADDRESS`` etc.) first; the mesh spans every device of every
+host, each host feeds the same seeded batch, and :func:`shard_batch` keeps its slice.
 """
 
 from __future__ import annotations
@@ -45,6 +42,7 @@ from jax.sharding import PartitionSpec as P
 from thrombojax.errors import ConfigError
 from thrombojax.models.registry import Surrogate
 from thrombojax.simulator.flat import FlatStep, flat_batch_ok
+from thrombojax.simulator.previous import lead_count
 from thrombojax.simulator.step import LearnedStep, make_step
 from thrombojax.train.averaging import average_weights
 from thrombojax.train.corrupt import corrupt_window
@@ -133,7 +131,8 @@ def batch_loss(
         batch: :class:`thrombojax.data.batching.Batch` (``frames [B, W, N, 3]``,
             ``W >= pushforward + k + H + 1``, ``H`` the step's history; a step with
             ``rest_edges``, ``push_guards`` or ``input_guards`` reads ``[B, 1 + W, N, 3]``,
-            the rest frame first: ``make_batch(..., rest=True)``).
+            the rest frame first: ``make_batch(..., rest=True)``; with ``start_speed`` two
+            start frames follow: ``make_batch(..., start_speed=...)``).
         rng: PRNG key for noise and dropout (``None`` in evaluation).
         train: training mode (noise, dropout).
         noise_std, noise_gamma, noise_walk, noise_shared: training noise
@@ -199,7 +198,8 @@ def batch_loss(
                                 stretch_noise=stretch_noise, time_scale=time_scale)
 
     wall_term = bool(wall_loss_weight)  # static: no wall search compiled when off
-    lead = step.rest_edges or push_guards is not None or input_guards is not None  # rest first
+    lead = lead_count(step.rest_edges or push_guards is not None or input_guards is not None,
+                      step.start_speed)  # lead frames: the rest frame, then the start frames
     if push_guards is not None and (flat_batch or not pushforward):
         raise ConfigError("push-forward guards need push-forward steps (--pushforward-steps "
                           ">= 1) and the vmapped batch (not flat_batch)")
@@ -208,8 +208,8 @@ def batch_loss(
 
     def one(frames, node_type, mask, key):
         model_key, rest = None, None
-        if lead:  # the window is led by the rest frame, which no noise touches
-            rest, frames = frames[0], frames[1:]
+        if lead:  # the window's lead frames, which no noise touches
+            rest, frames = frames[0] if lead == 1 else frames[:lead], frames[lead:]
         if key is not None:
             noise_key, model_key = jax.random.split(key)
             if train:
@@ -236,7 +236,7 @@ def batch_loss(
     denom = jnp.maximum(count, 1.0)
     total, loss_denom = jnp.sum, denom
     if speedup_weight:  # static: nothing compiled when off
-        clean = batch.frames[:, 1:] if lead else batch.frames
+        clean = batch.frames[:, lead:]
         weights = jax.vmap(functools.partial(
             speedup_window_weight, current=step.history, weight=speedup_weight,
             fraction=speedup_fraction))(clean, batch.node_type, batch.mask)
@@ -392,8 +392,8 @@ def init_state(
         A :class:`TrainState` at step 0.
     """
     frames, step = batch.frames[0], _as_step(model)
-    h = step.history  # the window's current frame is frames[h] (after the rest frame)
-    rest, frames = (frames[0], frames[1:]) if step.rest_edges else (None, frames)
+    h, lead = step.history, lead_count(step.rest_edges, step.start_speed)  # frames[h]: after it
+    rest, frames = (frames[:lead], frames[lead:]) if lead else (None, frames)
     params = step.init(rng, step.previous(frames, h, rest), frames[h], batch.node_type[0],
                        batch.mask[0])
     return TrainState(step=jnp.zeros((), jnp.int32), params=params, opt_state=tx.init(params),

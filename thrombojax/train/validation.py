@@ -194,16 +194,19 @@ def progress_postfix(record: dict) -> dict[str, str]:
     return out
 
 
-def eval_batches(store, budget: int, batch_size: int, cfg) -> list:
+def eval_batches(store, budget: int, batch_size: int, cfg,
+                 start_speed: tuple[int, int] | None = None) -> list:
     """Validation batches: every window once, in order, no augmentation, with a fixed node subset
-    (seeded by ``(seed, _EVAL_EPOCH, batch)``, the same every epoch)."""
+    (seeded by ``(seed, _EVAL_EPOCH, batch)``, the same every epoch); ``start_speed``: as
+    :func:`~thrombojax.data.batching.make_batch`'s."""
     plan = epoch_plan(len(store), bary_ratio=0.0, batch_size=batch_size, seed=cfg.seed, epoch=0)
     plan = plan.reshape(-1, 2)
     order = np.argsort(np.where(plan[:, 0] < 0, len(store), plan[:, 0]), kind="stable")
     plan = plan[order].reshape(-1, batch_size, 2)
     return [
         make_batch(store, entries, budget, nodes_per_sample=cfg.nodes_per_sample,
-                   seed=cfg.seed, epoch=_EVAL_EPOCH, position=i, rest=cfg.rest_edges)
+                   seed=cfg.seed, epoch=_EVAL_EPOCH, position=i, rest=cfg.rest_edges,
+                   start_speed=start_speed)
         for i, entries in enumerate(plan)
     ]
 
