@@ -18,8 +18,7 @@ clot's start speed, ``s_{c-1}, s_c`` with ``c`` the frame a rollout starts from 
 frame, before the history; :mod:`thrombojax.simulator.start_speed`). A rollout carries
 ``x_prev`` from step to step with :func:`shift`, which keeps these lead frames and moves the
 others on, so every consumer of the step (rollouts, ensembles, the unrolled loss, evaluation)
-passes them along without knowing
-they are there.
+passes them along without knowing they are there.
 """
 
 from __future__ import annotations
