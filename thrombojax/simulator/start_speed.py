@@ -22,9 +22,9 @@ the rollout's start, and one before it (the start from rest) its own true veloci
 ``start_from`` of :func:`thrombojax.simulator.previous.previous`).
 
 Measured (``experiments/results/ladder_budget/start_speed/README.md``): on BendVessel, whose
-clots slide at their terminal speed from the rollout's start, one seed of two ends nearer and the
-guarded ensemble does not; on ClotEntry, whose clots enter at a speed that says nothing of their
-pace, the models end farther off. Off by default.
+clots slide at their terminal speed from the rollout's start, four seeds of four end a little
+nearer guarded, the exit's lag unchanged; on ClotEntry, whose clots enter at a speed that says
+nothing of their pace, the models end farther off. Off by default.
 """
 
 from __future__ import annotations

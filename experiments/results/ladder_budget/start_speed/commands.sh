@@ -90,3 +90,35 @@ T="ClotEntry (2,048 nodes): the outlet recipe's 2-epoch seeds 13-16 and their fo
 python $CE --nodes 2048 $OUT/clotentry_heldout data/clotentry.h5 clotentry_008,clotentry_009 "$T, held out" $A $V &
 python $CE --nodes 2048 --sims-kind "validation simulation" $OUT/clotentry_validation data/clotentry.h5 clotentry_007 "$T, validation" $V &
 wait
+
+# 6. Two more BendVessel seeds (2 and 3) with --start-speed, side by side (36 min each), then
+# their rows and the four seeds 0-3 as one ensemble (e4), against the outlet seeds 2 and 3 of
+# ../guards_exit/ (run by ../guards_exit/commands.sh from /work/exp/s97; rows copied). The tables
+# above were then written again with every row (the same rows and labels, reused).
+for s in 2 3; do
+    thrombojax train --config experiments/results/ladder_budget/bendvessel_room/follow_room30_last/config.json \
+        --dataset data/bendvessel.h5 --seed $s --outlet-features 2 --start-speed \
+        --out $P/bv_start_s$s --quiet &
+done
+wait
+Q=/work/exp/s97
+G=experiments/results/ladder_budget/guards_exit
+for d in heldout validation; do
+    for m in s2 s3; do for k in auto alone; do cp $G/$d/outlet_${m}_$k.json $OUT/bendvessel_$d/; done; done
+    for k in auto alone contain; do cp $G/$d/outlet_e4_$k.json $OUT/bendvessel_$d/; done
+done
+E4O=$R/bv_outlet_s0+$R/bv_outlet_s1+$Q/bv_outlet_s2+$Q/bv_outlet_s3
+E4S=$P/bv_pace_s0+$P/bv_pace_s1+$P/bv_start_s2+$P/bv_start_s3
+O="outlet_s2_auto=$Q/bv_outlet_s2:guards,tolerance_r=$AUTO outlet_s2_alone=$Q/bv_outlet_s2 outlet_s3_auto=$Q/bv_outlet_s3:guards,tolerance_r=$AUTO outlet_s3_alone=$Q/bv_outlet_s3 outlet_e4_auto=$E4O:guards,tolerance_r=$AUTO outlet_e4_contain=$E4O:guards,coherence=0 outlet_e4_alone=$E4O"
+H=""
+for s in 2 3; do H="$H start_s${s}_auto=$P/bv_start_s$s:guards,tolerance_r=$AUTO start_s${s}_contain=$P/bv_start_s$s:guards,coherence=0 start_s${s}_alone=$P/bv_start_s$s"; done
+E="start_e4_auto=$E4S:guards,tolerance_r=$AUTO start_e4_contain=$E4S:guards,coherence=0 start_e4_alone=$E4S"
+T="BendVessel: the outlet recipe's seeds 0-3 (37 epochs), the ensembles of seeds 0-1 (e2) and 0-3 (e4), without (outlet) and with the clot's start speed as an input (start, --start-speed); guarded at auto (0.207 r), with the step after containment reading the velocity from before it (wallvel), with containment only (contain), and alone"
+python $CE $OUT/bendvessel_heldout data/bendvessel.h5 bendvessel_005,bendvessel_012,bendvessel_019 "$T, held out" $ROWS $O $E $H &
+python $CE --sims-kind "validation simulation" $OUT/bendvessel_validation data/bendvessel.h5 bendvessel_009 "$T, validation" $ROWS $O $E &
+wait
+L=""; for p in outlet start; do for m in s0 s1 e2; do for k in auto contain alone; do L="$L,${p}_${m}_$k"; done; done; done
+L="$L,outlet_s2_auto,outlet_s2_alone,outlet_s3_auto,outlet_s3_alone,outlet_e4_auto,outlet_e4_contain,outlet_e4_alone"
+L="$L,start_s2_auto,start_s2_contain,start_s2_alone,start_s3_auto,start_s3_contain,start_s3_alone,start_e4_auto,start_e4_contain,start_e4_alone"
+python experiments/results/ladder_budget/bendvessel_speed_noise/track_table.py --force --out $OUT/track.md \
+    $OUT/bendvessel_heldout ${L#,}
