@@ -19,12 +19,11 @@ P=/work/exp/s99   # the runs with the start speed
 
 # 1. BendVessel: the outlet recipe (the config of its seeds) plus --start-speed, seeds 0 and 1
 # side by side (37 epochs, 38 min each; the time is in training/*/metrics.jsonl).
-for s in 0 1; do
+train_bv() {  # SEED OUT
     thrombojax train --config experiments/results/ladder_budget/bendvessel_room/follow_room30_last/config.json \
-        --dataset data/bendvessel.h5 --seed $s --outlet-features 2 --start-speed \
-        --out $P/bv_pace_s$s --quiet &
-done
-wait
+        --dataset data/bendvessel.h5 --seed $1 --outlet-features 2 --start-speed --out $2 --quiet
+}
+train_bv 0 $P/bv_pace_s0 & train_bv 1 $P/bv_pace_s1 & wait
 
 # 2. ClotEntry: the outlet recipe's 2-epoch config plus --start-speed, seeds 13-16, two at a
 # time (the first pair beside BendVessel's rollouts of 3).
@@ -95,12 +94,7 @@ wait
 # their rows and the four seeds 0-3 as one ensemble (e4), against the outlet seeds 2 and 3 of
 # ../guards_exit/ (run by ../guards_exit/commands.sh from /work/exp/s97; rows copied). The tables
 # above were then written again with every row (the same rows and labels, reused).
-for s in 2 3; do
-    thrombojax train --config experiments/results/ladder_budget/bendvessel_room/follow_room30_last/config.json \
-        --dataset data/bendvessel.h5 --seed $s --outlet-features 2 --start-speed \
-        --out $P/bv_start_s$s --quiet &
-done
-wait
+train_bv 2 $P/bv_start_s2 & train_bv 3 $P/bv_start_s3 & wait
 Q=/work/exp/s97
 G=experiments/results/ladder_budget/guards_exit
 for d in heldout validation; do
