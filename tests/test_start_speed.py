@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 from dataset_factory import ring_clot_window, tiny_mgn_step, train_tiny_step, window_batch
 from test_rest_edges import _mgn, _scene
+from test_speed_noise import STATS
 
 from thrombojax.errors import ConfigError
 from thrombojax.eval.drift import speed_carry
@@ -22,13 +23,11 @@ from thrombojax.models.registry import identity_stats
 from thrombojax.simulator.rollout import unroll
 from thrombojax.simulator.start_speed import start_speed_feature
 from thrombojax.simulator.step import make_step
-from thrombojax.types import NodeType, TargetStats
-
-STATS = TargetStats(mean=jnp.zeros(3), std=jnp.full(3, 0.02), velocity_std=jnp.asarray(0.05))
+from thrombojax.types import NodeType
 
 
 @pytest.mark.parametrize("history,rest", [(1, False), (3, False), (2, True)])
-def test_previous_carries_the_pace_frames_of_the_start_and_shift_keeps_them(history, rest):
+def test_previous_carries_the_start_frames_of_the_rollout_and_shift_keeps_them(history, rest):
     """``x_prev`` = (rest), s_{c-1}, s_c, then the history; ``c = t`` (a rollout from t) or
     ``min(t, start_from)`` (a window after the rollouts' start frame); a rollout keeps them."""
     pos, nt, _ = _scene(frames=8)
@@ -52,7 +51,7 @@ def test_previous_carries_the_pace_frames_of_the_start_and_shift_keeps_them(hist
         step.check_previous(np.asarray(prev)[1:], len(nt), "test")
 
 
-def test_the_pace_feature_is_the_clot_speed_on_clot_nodes_only_and_turns_with_nothing():
+def test_the_start_speed_feature_is_the_clot_speed_on_clot_nodes_only_and_turns_with_nothing():
     frames, nt, mask = ring_clot_window(0.05)
     feat = np.asarray(start_speed_feature(frames[:2], nt, mask, 0.025))
     clot = np.asarray((nt == NodeType.CLOT) & mask)
@@ -64,7 +63,7 @@ def test_the_pace_feature_is_the_clot_speed_on_clot_nodes_only_and_turns_with_no
                                rtol=1e-4)
 
 
-def test_the_step_reads_the_pace_and_a_rollout_keeps_it():
+def test_the_step_reads_the_start_speed_and_a_rollout_keeps_it():
     """Another start speed changes the step's output; a rollout's steps equal single steps whose
     start frames are the start's (``start_from``), not the predicted frames'."""
     pos, nt, mask = _scene(frames=8)
@@ -84,7 +83,7 @@ def test_the_step_reads_the_pace_and_a_rollout_keeps_it():
         np.testing.assert_allclose(np.asarray(traj[i]), np.asarray(one), atol=1e-5)
 
 
-def test_batches_lead_with_the_pace_frames_of_the_rollout_start():
+def test_batches_lead_with_the_start_frames_of_the_rollout_start():
     """``make_batch(..., start_speed=(start, H))``: a window whose frame t is before ``start`` reads
     its own s_{t-1}, s_t; a later one the frames ``start - 1, start``; the same nodes."""
     from dataset_factory import numbered_store
@@ -95,16 +94,16 @@ def test_batches_lead_with_the_pace_frames_of_the_rollout_start():
     times = [store.windows[i][1] for i in range(len(store))]
     entries = np.array([[times.index(2), 0], [times.index(6), 0]])  # frame t = 2 and 6
     plain = make_batch(store, entries, 64, nodes_per_sample=20, seed=1)
-    paced = make_batch(store, entries, 64, nodes_per_sample=20, seed=1, start_speed=(4, 1))
+    led = make_batch(store, entries, 64, nodes_per_sample=20, seed=1, start_speed=(4, 1))
     both = make_batch(store, entries, 64, nodes_per_sample=20, seed=1, rest=True,
                       start_speed=(4, 1))
-    np.testing.assert_array_equal(paced.frames[:, 2:], plain.frames)
-    np.testing.assert_array_equal(both.frames[:, 1:], paced.frames)
+    np.testing.assert_array_equal(led.frames[:, 2:], plain.frames)
+    np.testing.assert_array_equal(both.frames[:, 1:], led.frames)
     real = plain.mask
     for b, (c0, c1) in enumerate(((1, 2), (3, 4))):
-        np.testing.assert_array_equal(paced.frames[b, :2, :, 1][:, real[b]],
+        np.testing.assert_array_equal(led.frames[b, :2, :, 1][:, real[b]],
                                       np.array([[c0], [c1]]) * np.ones((1, real[b].sum())))
-        np.testing.assert_array_equal(paced.frames[b, 0, :, 0], plain.frames[b, 0, :, 0])
+        np.testing.assert_array_equal(led.frames[b, 0, :, 0], plain.frames[b, 0, :, 0])
 
 
 SPEEDS = (0.03, 0.05, 0.07)
@@ -124,7 +123,7 @@ def _carry_after_training(start_speed: bool) -> float:
                              delta=0.1, mask=np.asarray(mask)).mean())
 
 
-def test_the_pace_lets_a_step_trained_with_speed_noise_keep_the_simulation_speed():
+def test_the_start_speed_lets_a_step_trained_with_speed_noise_keep_the_simulation_speed():
     """Fails without the start speed: with speed noise a step learns to bring a speed error back but
     can only bring it to a speed of its training; reading the true start speed it drops the error in
     its inputs for the clot's own speed, keeping much less of it."""
@@ -151,7 +150,7 @@ def test_the_option_reaches_the_config_cli_and_is_refused_where_it_cannot_act():
         FlatStep(step)
 
 
-def test_cli_trains_with_the_pace_reloads_the_step_and_rolls_out(tmp_path):
+def test_cli_trains_with_the_start_speed_reloads_the_step_and_rolls_out(tmp_path):
     from dataset_factory import train_tiny_cli
 
     from thrombojax.cli import main

@@ -65,27 +65,26 @@ for s in 2 3; do
         --out $Q/bv_outlet_s$s &
 done; wait
 E4=$R/bv_outlet_s0+$R/bv_outlet_s1+$Q/bv_outlet_s2+$Q/bv_outlet_s3
+both_tables() {  # HELD-OUT TITLE: the held-out and validation tables with every row so far
+    python $CE $OUT/heldout data/bendvessel.h5 bendvessel_005,bendvessel_012,bendvessel_019 \
+        "$1" $ROWS $ROWS4 &
+    python $CE --sims-kind "validation simulation" $OUT/validation data/bendvessel.h5 bendvessel_009 \
+        "BendVessel, validation: the same rows" $ROWS $ROWS4 &
+    wait
+}
 ROWS4=""
 for m in s2 s3 e4; do
     case $m in e4) RUN=$E4 ;; *) RUN=$Q/bv_outlet_$m ;; esac
     ROWS4="$ROWS4 outlet_${m}_auto=$RUN:guards,tolerance_r=$AUTO outlet_${m}_wallvel=$RUN:guards,tolerance_r=$AUTO,keep_velocity_wall=1 outlet_${m}_alone=$RUN"
 done
-python $CE $OUT/heldout data/bendvessel.h5 bendvessel_005,bendvessel_012,bendvessel_019 \
-    "$TITLE; seeds 2 and 3 and the four seeds 0-3 as one ensemble (e4) at auto, wallvel and alone" $ROWS $ROWS4 &
-python $CE --sims-kind "validation simulation" $OUT/validation data/bendvessel.h5 bendvessel_009 \
-    "BendVessel, validation: the same rows" $ROWS $ROWS4 &
-wait
+both_tables "$TITLE; seeds 2 and 3 and the four seeds 0-3 as one ensemble (e4) at auto, wallvel and alone"
 # 1c. The four-seed ensemble with the vessel-following prior's centring pull set at rollout time
 # (strength 0.5, tolerance 0, as ../bendvessel_pull/inference/; thrombojax rollout --centre-pull
 # 0.5 --centre-tolerance 0), alone and guarded at auto. Measured into /work/exp/s97/pull_heldout
 # and pull_validation (the commands their JSONs record), copied here; the commands below wrote
 # the tables with every row.
 ROWS4="$ROWS4 outlet_e4_pull_alone=$E4:alone,centre_pull=0.5,centre_tolerance_r=0 outlet_e4_pull_auto=$E4:guards,tolerance_r=$AUTO,centre_pull=0.5,centre_tolerance_r=0"
-python $CE $OUT/heldout data/bendvessel.h5 bendvessel_005,bendvessel_012,bendvessel_019 \
-    "$TITLE; seeds 2 and 3 and the four seeds 0-3 as one ensemble (e4) at auto, wallvel and alone, and e4 with the centring pull 0.5 set at rollout time (pull), alone and at auto" $ROWS $ROWS4 &
-python $CE --sims-kind "validation simulation" $OUT/validation data/bendvessel.h5 bendvessel_009 \
-    "BendVessel, validation: the same rows" $ROWS $ROWS4 &
-wait
+both_tables "$TITLE; seeds 2 and 3 and the four seeds 0-3 as one ensemble (e4) at auto, wallvel and alone, and e4 with the centring pull 0.5 set at rollout time (pull), alone and at auto"
 L4=outlet_s2_auto,outlet_s3_auto,outlet_e4_auto,outlet_s2_wallvel,outlet_s3_wallvel,outlet_e4_wallvel,outlet_s2_alone,outlet_s3_alone,outlet_e4_alone,outlet_e4_pull_alone,outlet_e4_pull_auto
 python experiments/results/ladder_budget/bendvessel_speed_noise/track_table.py --force --out $OUT/track.md \
     $OUT/heldout $L,$L4 $OUT/validation $L,$L4
@@ -96,11 +95,7 @@ python experiments/results/ladder_budget/bendvessel_speed_noise/track_table.py -
 # row there, wrote the tables.
 ROWS4="$ROWS4 outlet_e4_contain=$E4:guards,coherence=0 outlet_e4_containvel=$E4:guards,coherence=0,keep_velocity_wall=1"
 ROWS4="$ROWS4 outlet_e4_pull_contain=$E4:guards,coherence=0,centre_pull=0.5,centre_tolerance_r=0 outlet_e4_pull_containvel=$E4:guards,coherence=0,keep_velocity_wall=1,centre_pull=0.5,centre_tolerance_r=0"
-python $CE $OUT/heldout data/bendvessel.h5 bendvessel_005,bendvessel_012,bendvessel_019 \
-    "$TITLE; seeds 2 and 3 and the four seeds 0-3 as one ensemble (e4) at auto, wallvel and alone, and e4 with the centring pull 0.5 set at rollout time (pull), alone and at auto; e4 with containment only (contain), that with the velocity kept through containment (containvel), and both with the pull" $ROWS $ROWS4 &
-python $CE --sims-kind "validation simulation" $OUT/validation data/bendvessel.h5 bendvessel_009 \
-    "BendVessel, validation: the same rows" $ROWS $ROWS4 &
-wait
+both_tables "$TITLE; seeds 2 and 3 and the four seeds 0-3 as one ensemble (e4) at auto, wallvel and alone, and e4 with the centring pull 0.5 set at rollout time (pull), alone and at auto; e4 with containment only (contain), that with the velocity kept through containment (containvel), and both with the pull"
 L4=$L4,outlet_e4_contain,outlet_e4_containvel,outlet_e4_pull_contain,outlet_e4_pull_containvel
 python experiments/results/ladder_budget/bendvessel_speed_noise/track_table.py --force --out $OUT/track.md \
     $OUT/heldout $L,$L4 $OUT/validation $L,$L4
@@ -122,11 +117,7 @@ for s in 4 5; do
 done
 ROWS4="$ROWS4 outlet_e6_auto=$E6:guards,tolerance_r=$AUTO outlet_e6_wallvel=$E6:guards,tolerance_r=$AUTO,keep_velocity_wall=1 outlet_e6_alone=$E6"
 ROWS4="$ROWS4 outlet_e6_pull_alone=$E6:alone,centre_pull=0.5,centre_tolerance_r=0 outlet_e6_contain=$E6:guards,coherence=0 outlet_e6_containvel=$E6:guards,coherence=0,keep_velocity_wall=1"
-python $CE $OUT/heldout data/bendvessel.h5 bendvessel_005,bendvessel_012,bendvessel_019 \
-    "$TITLE; seeds 2-5 and the ensembles of seeds 0-3 (e4) and 0-5 (e6) at auto, wallvel and alone, with the centring pull 0.5 set at rollout time (pull), and with containment only (contain), that with the velocity kept through containment (containvel)" $ROWS $ROWS4 &
-python $CE --sims-kind "validation simulation" $OUT/validation data/bendvessel.h5 bendvessel_009 \
-    "BendVessel, validation: the same rows" $ROWS $ROWS4 &
-wait
+both_tables "$TITLE; seeds 2-5 and the ensembles of seeds 0-3 (e4) and 0-5 (e6) at auto, wallvel and alone, with the centring pull 0.5 set at rollout time (pull), and with containment only (contain), that with the velocity kept through containment (containvel)"
 L4=$L4,outlet_s4_auto,outlet_s5_auto,outlet_e6_auto,outlet_s4_wallvel,outlet_s5_wallvel,outlet_e6_wallvel
 L4=$L4,outlet_s4_alone,outlet_s5_alone,outlet_e6_alone,outlet_e6_pull_alone,outlet_e6_contain,outlet_e6_containvel
 python experiments/results/ladder_budget/bendvessel_speed_noise/track_table.py --force --out $OUT/track.md \
