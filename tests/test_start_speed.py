@@ -163,3 +163,98 @@ def test_cli_trains_with_the_start_speed_reloads_the_step_and_rolls_out(tmp_path
     assert main(["rollout", "--run", str(run), "--dataset", str(data), "--out", str(out),
                  "--split", "test", "--no-gif", "--quiet"]) == 0
     assert (out / "rollout.json").exists()
+
+
+def test_start_speed_noise_scales_the_start_motion_by_one_factor_and_nothing_else():
+    from thrombojax.simulator.start_speed import jitter_start_speed
+
+    frames, nt, mask = ring_clot_window(0.05, shear=0.01, frames=4)
+    lead = jnp.concatenate([frames[:1], frames[:2]])  # a rest frame, then the two start frames
+    out = np.asarray(jitter_start_speed(jax.random.key(3), lead, 0.2))
+    f = np.asarray(lead)
+    np.testing.assert_array_equal(out[:2], f[:2])  # the rest frame and s_{c-1} stay
+    motion, noisy = f[2] - f[1], out[2] - out[1]
+    factor = noisy[20, 0] / motion[20, 0]
+    assert abs(factor - 1.0) > 1e-3
+    np.testing.assert_allclose(noisy, factor * motion, atol=2e-6)  # one factor, every node
+    before = start_speed_feature(lead[1:], nt, mask, 0.05)
+    after = start_speed_feature(jnp.asarray(out[1:]), nt, mask, 0.05)
+    clot = np.asarray((nt == NodeType.CLOT) & mask)
+    np.testing.assert_allclose(np.asarray(after)[clot], abs(factor) * np.asarray(before)[clot],
+                               rtol=1e-4)
+    assert jitter_start_speed(jax.random.key(3), lead, 0.0) is lead
+    with pytest.raises(ValueError, match="std must be >= 0"):
+        jitter_start_speed(jax.random.key(3), lead, -0.1)
+    with pytest.raises(ValueError, match="two start frames last"):
+        jitter_start_speed(jax.random.key(3), lead[0], 0.1)
+
+
+def test_start_speed_noise_acts_in_training_only():
+    """The training loss of a step with the start speed changes with the noise; the evaluation
+    loss (no noise) and a step without the start speed do not."""
+    from thrombojax.train.schedule import make_optimizer
+    from thrombojax.train.step import batch_loss, init_state
+
+    windows = [ring_clot_window(v, shear=0.01, seed=i) for i, v in enumerate(SPEEDS)]
+    plain = window_batch(windows)
+    led = window_batch([(jnp.concatenate([f[:2], f]), nt, m) for f, nt, m in windows])
+    step, without = make_step(tiny_mgn_step().model, start_speed=True), tiny_mgn_step()
+    params = init_state(step, make_optimizer(1e-3), jax.random.key(0), led).params
+    params0 = init_state(without, make_optimizer(1e-3), jax.random.key(0), plain).params
+
+    def loss(train, noise, s=step, p=params, batch=led):
+        key = jax.random.key(5) if train else None
+        return float(batch_loss(s, p, STATS, batch, key, train=train, speed_noise=0.1,
+                                start_speed_noise=noise)[0])
+
+    assert loss(True, 0.3) != loss(True, 0.0)
+    assert loss(False, 0.3) == loss(False, 0.0)
+    assert loss(True, 0.3, without, params0, plain) == loss(True, 0.0, without, params0, plain)
+
+
+SLOW_FAST = (0.03, 0.07)
+
+
+def _start_gain_after_training(start_speed_noise: float) -> float:
+    """Train the tiny step that reads the start speed with speed noise 0.3 on two clots that keep
+    their speeds (:data:`SLOW_FAST`), with the start-speed noise given; return the share of a
+    10 % faster start speed its predicted clot motion takes on (clean inputs)."""
+    step = make_step(tiny_mgn_step().model, start_speed=True)
+    windows = [ring_clot_window(v, shear=0.01, seed=i) for i, v in enumerate(SLOW_FAST)]
+    windows = [(jnp.concatenate([f[:2], f]), nt, m) for f, nt, m in windows]
+    params = train_tiny_step(step, window_batch(windows), STATS, speed_noise=0.3,
+                             start_speed_noise=start_speed_noise)
+    frames, nt, mask = ring_clot_window(0.05, shear=0.01, seed=7)
+    x_prev = jnp.concatenate([frames[:2], frames[:1]])  # start frames s_0, s_1; then s_0
+    faster = x_prev.at[1].set(frames[0] + 1.1 * (frames[1] - frames[0]))
+    clot = np.asarray((nt == NodeType.CLOT) & mask)
+    moves = [np.asarray(step(params, STATS, p, frames[1], nt, mask).positions - frames[1])
+             [clot, 0].mean() for p in (x_prev, faster)]
+    return (moves[1] / moves[0] - 1.0) / 0.1
+
+
+def test_start_speed_noise_keeps_the_step_from_leaning_on_the_start_speed_alone():
+    """Fails without the noise: a step trained with speed noise on its input motion but a clean
+    start speed takes its speed from the start speed (a 10 % faster start, a clot about 10 %
+    faster); with the start speed noised as much as the motion it takes on clearly less."""
+    clean = _start_gain_after_training(0.0)
+    noisy = _start_gain_after_training(0.3)
+    assert clean > 0.5
+    assert noisy < 0.7 * clean
+
+
+def test_start_speed_noise_reaches_the_config_cli_and_step_and_needs_the_start_speed():
+    from thrombojax.cli import build_parser
+    from thrombojax.train.config import TrainConfig
+    from thrombojax.train.step_options import train_step_options
+
+    args = build_parser().parse_args(["train", "--dataset", "d.h5", "--model", "mgn", "--out",
+                                      "o", "--start-speed", "--start-speed-noise", "0.2"])
+    assert args.start_speed_noise == 0.2
+    cfg = TrainConfig(start_speed=True, start_speed_noise=0.2)
+    assert train_step_options(cfg, 1.0, 10)["start_speed_noise"] == 0.2
+    assert train_step_options(TrainConfig(), 1.0, 10)["start_speed_noise"] == 0.0
+    with pytest.raises(ConfigError, match="--start-speed-noise .* needs --start-speed"):
+        TrainConfig(start_speed_noise=0.2)
+    with pytest.raises(ConfigError, match="start_speed_noise"):
+        TrainConfig(start_speed=True, start_speed_noise=-0.1)

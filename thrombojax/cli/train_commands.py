@@ -224,6 +224,10 @@ def _add_train(sub) -> None:
                    "reads the clot's start speed: its speed in the true frames a rollout starts "
                    "from (the dataset's skip_frames in training), kept for the whole rollout, so "
                    "the step knows the simulation's speed without carrying its own errors")
+    p.add_argument("--start-speed-noise", type=NN_FLOAT, metavar="F", help="with "
+                   "--start-speed: every training window's start speed scaled by 1 + e, "
+                   "e ~ N(0, F^2), so the step cannot tell its training simulations apart by it "
+                   "(a fraction; default 0: off)")
     p.add_argument("--wall-signed", action="store_true", default=None, help="with "
                    "--wall-features: the features are the signed distance to the wall "
                    "(positive outside) and its outward normal, which tell a node that crossed "

@@ -25,6 +25,11 @@ Measured (``experiments/results/ladder_budget/start_speed/README.md``): on BendV
 clots slide at their terminal speed from the rollout's start, four seeds of four end a little
 nearer guarded, the exit's lag unchanged; on ClotEntry, whose clots enter at a speed that says
 nothing of their pace, the models end farther off. Off by default.
+
+Start-speed noise (``thrombojax train --start-speed-noise F``, :func:`jitter_start_speed`): in
+training, every window's start speed is scaled by ``1 + e``, ``e ~ N(0, F^2)``, so that a step
+cannot tell its few training simulations apart by their start speeds and learns only what the
+start speed says of the pace on average.
 """
 
 from __future__ import annotations
@@ -34,7 +39,7 @@ import jax.numpy as jnp
 
 from thrombojax.types import clot_mask
 
-__all__ = ["start_speed_feature"]
+__all__ = ["start_speed_feature", "jitter_start_speed"]
 
 
 def start_speed_feature(start_frames: jax.Array, node_type: jax.Array, mask: jax.Array,
@@ -48,3 +53,21 @@ def start_speed_feature(start_frames: jax.Array, node_type: jax.Array, mask: jax
     velocity = jnp.sum((start_frames[1] - start_frames[0]) * w, axis=0) / count
     speed = jnp.sqrt(jnp.sum(velocity ** 2) + 1e-20) / velocity_scale
     return jnp.where(clot, speed, 0.0)[:, None]
+
+
+def jitter_start_speed(key: jax.Array, lead: jax.Array, std: float) -> jax.Array:
+    """A window's lead frames ``lead`` (``[L, N, 3]``, the two start frames ``s_{c-1}, s_c``
+    last) with ``s_c`` moved to ``s_{c-1} + (1 + e) (s_c - s_{c-1})``, ``e ~ N(0, std^2)`` one
+    draw: every node's start motion, and so the clot's start speed
+    (:func:`start_speed_feature`), scaled by ``|1 + e|``; the other lead frames unchanged.
+    ``std = 0`` returns ``lead`` itself. Jittable (``std`` static)."""
+    if not std >= 0:
+        raise ValueError(f"start-speed noise: std must be >= 0, got {std!r}")
+    if std == 0:
+        return lead
+    if lead.ndim != 3 or lead.shape[0] < 2:
+        raise ValueError(f"start-speed noise needs the lead frames [L >= 2, N, 3] with the two "
+                         f"start frames last, got shape {tuple(lead.shape)}")
+    factor = 1.0 + std * jax.random.normal(key, (), lead.dtype)
+    start = lead[-2] + factor * (lead[-1] - lead[-2])
+    return lead.at[-1].set(start)

@@ -47,6 +47,7 @@ _RULES: dict[str, tuple[str, float, bool, bool]] = {
     "history_noise": ("float", 0.0, True, False),
     "speed_noise": ("float", 0.0, True, False),
     "speed_noise_steady": ("float", 0.0, True, False),
+    "start_speed_noise": ("float", 0.0, True, False),
     "direction_noise": ("float", 0.0, True, False),
     "swell_noise": ("float", 0.0, True, False),
     "stretch_noise": ("float", 0.0, True, False),
@@ -107,8 +108,8 @@ def check_train_values(cfg: Any) -> None:
     (:func:`thrombojax.train.memory.check_train_memory`; the training loop checks again with the
     dataset's sizes), ``tiny``, ``noise_walk``, ``stop_history_gradient``,
     ``uniform_rotation``, ``rest_edges``, ``start_speed`` (not with the guards of the
-    training), ``input_guards``, ``pushforward_guards`` (only with
-    ``pushforward_steps``) and ``wall_signed`` booleans (``wall_signed`` only with
+    training; ``start_speed_noise`` only with it), ``input_guards``, ``pushforward_guards``
+    (only with ``pushforward_steps``) and ``wall_signed`` booleans (``wall_signed`` only with
     ``wall_features``), ``history_noise`` only with ``history >= 2``,
     ``model_config`` an object; upper bounds in :data:`_HIGH`.
     """
@@ -131,6 +132,9 @@ def check_train_values(cfg: Any) -> None:
                                                  or getattr(cfg, "input_guards", False)):
         raise ConfigError("--start-speed (start_speed) does not go with --pushforward-guards "
                           "or --input-guards (their windows are led by the rest frame alone)")
+    if getattr(cfg, "start_speed_noise", 0.0) > 0 and not getattr(cfg, "start_speed", False):
+        raise ConfigError("--start-speed-noise (start_speed_noise) needs --start-speed (it "
+                          "perturbs the start speed the step reads)")
     if getattr(cfg, "centre_pull", 0.0) > 0 and not getattr(cfg, "follow_axis", 0.0) > 0:
         raise ConfigError("--centre-pull (centre_pull) needs --follow-axis W > 0 (it tilts the "
                           "velocities of the vessel-following prior)")

@@ -198,6 +198,7 @@ class TrainConfig:
             :mod:`thrombojax.simulator.previous`); every training window carries one more frame.
         start_speed: the step also reads the clot's start speed, its speed in the true frames a
             rollout starts from (:mod:`thrombojax.simulator.start_speed`); two more frames a window.
+            ``start_speed_noise`` F: in training that speed times ``1 + e``, ``e ~ N(0, F^2)``.
         history: frames before t the learned step reads (1: the velocity alone; H >= 2: also
             the H - 1 accelerations before t, :mod:`thrombojax.simulator.step`); windows grow
             by H - 1 frames.
@@ -273,6 +274,7 @@ class TrainConfig:
     centre_tolerance: float | str = 0.0
     rest_edges: bool = False
     start_speed: bool = False
+    start_speed_noise: float = 0.0
     wall_signed: bool = False
     wall_clot_mean: bool = False
     history: int = 1

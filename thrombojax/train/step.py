@@ -9,9 +9,10 @@ cosine, optional clipping: :mod:`thrombojax.train.schedule`).
 of ``vmap`` over the samples (:mod:`thrombojax.simulator.flat`; same loss and gradients, no
 faster on the CPU: ``benchmarks/results/flat_batch_cpu.md``).
 
-Data parallelism: :func:`data_mesh` builds a 1-D mesh ``("data",)`` over the local devices (or all
-devices of all hosts after ``jax.distributed.initialize()``); :func:`shard_batch` places the batch
-with ``NamedSharding(mesh, P("data"))`` on its leading axis and :func:`replicate` the state with
+Data parallelism (:mod:`thrombojax.train.mesh`): :func:`data_mesh` builds a 1-D mesh
+``("data",)`` over the local devices (or all devices of all hosts after
+``jax.distributed.initialize()``); :func:`shard_batch` places the batch with
+``NamedSharding(mesh, P("data"))`` on its leading axis and :func:`replicate` the state with
 ``P()``. ``jit`` then partitions the step itself (computation follows data): every device runs
 the model on its slice of the batch, and the pooled sums become one all-reduce: the loss and
 gradients of the whole batch (tested against one device; batch size a multiple of the devices).
@@ -34,19 +35,18 @@ from typing import Any
 
 import jax
 import jax.numpy as jnp
-import numpy as np
 import optax
-from jax.sharding import Mesh, NamedSharding
-from jax.sharding import PartitionSpec as P
 
 from thrombojax.errors import ConfigError
 from thrombojax.models.registry import Surrogate
 from thrombojax.simulator.flat import FlatStep, flat_batch_ok
 from thrombojax.simulator.previous import lead_count
+from thrombojax.simulator.start_speed import jitter_start_speed
 from thrombojax.simulator.step import LearnedStep, make_step
 from thrombojax.train.averaging import average_weights
 from thrombojax.train.corrupt import corrupt_window
 from thrombojax.train.loss import flat_window_loss_terms, window_loss_terms
+from thrombojax.train.mesh import data_mesh, replicate, shard_batch
 from thrombojax.train.push_guards import PushGuards, guard_inputs
 from thrombojax.train.speedup import speedup_window_weight
 from thrombojax.train.state import TrainState
@@ -62,32 +62,6 @@ __all__ = [
     "make_eval_step",
     "init_state",
 ]
-
-
-def data_mesh(devices: list | None = None) -> Mesh:
-    """A 1-D device mesh with the axis ``"data"`` (default: every device, all hosts)."""
-    devices = jax.devices() if devices is None else list(devices)
-    return Mesh(np.asarray(devices), ("data",))
-
-
-def shard_batch(batch: Any, mesh: Mesh) -> Any:
-    """Put a host batch on the mesh, split along its leading (batch) axis.
-
-    Every host passes the same full batch; each device receives its slice.
-    """
-    sharding = NamedSharding(mesh, P("data"))
-
-    def put(x):
-        x = np.asarray(x)
-        return jax.make_array_from_callback(x.shape, sharding, lambda index: x[index])
-
-    return jax.tree.map(put, batch)
-
-
-def replicate(tree: Any, mesh: Mesh) -> Any:
-    """Place a pytree on every device of the mesh (``PartitionSpec()``)."""
-    sharding = NamedSharding(mesh, P())
-    return jax.tree.map(lambda x: jax.device_put(x, sharding), tree)
 
 
 def _as_step(model: Surrogate | LearnedStep) -> LearnedStep:
@@ -123,6 +97,7 @@ def batch_loss(
     speedup_fraction: float = 0.1,
     push_guards: PushGuards | None = None,
     input_guards: PushGuards | None = None,
+    start_speed_noise: float = 0.0,
 ) -> tuple[jax.Array, dict[str, jax.Array]]:
     """Loss of a batch pooled over its clot nodes, and metrics.
 
@@ -179,6 +154,9 @@ def batch_loss(
         input_guards: the same guards applied to the window's input frames after the noise
             (in training only; :func:`thrombojax.train.push_guards.guard_inputs`; ``None``:
             off; not ``flat_batch``).
+        start_speed_noise: for a step with ``start_speed``, every window's start speed scaled
+            by ``1 + e``, ``e ~ N(0, start_speed_noise^2)``, in training only
+            (:func:`thrombojax.simulator.start_speed.jitter_start_speed`; 0: off).
     Returns:
         ``(loss, metrics)``: ``loss`` is the normalised-acceleration MSE (plus the weighted
         clot-wide and wall terms), a mean over the clot nodes weighted by their window's
@@ -218,6 +196,9 @@ def batch_loss(
                 if input_guards is not None:
                     frames = guard_inputs(frames, clean, rest, node_type, mask, input_guards,
                                           step.history)
+                if step.start_speed and start_speed_noise:
+                    rest = jitter_start_speed(jax.random.fold_in(noise_key, 101), rest,
+                                              start_speed_noise)
         return window_loss_terms(
             step, params, stats, frames, node_type, mask, k=k, pushforward=pushforward,
             train=train, rng=model_key, wall_term=wall_term, rest=rest, push_guards=push_guards,
@@ -301,6 +282,7 @@ def make_train_step(
     average_from: int | None = None,
     push_guards: PushGuards | None = None,
     input_guards: PushGuards | None = None,
+    start_speed_noise: float = 0.0,
 ) -> Callable[[TrainState, Any, jax.Array], tuple[TrainState, dict]]:
     """Build the jitted ``train_step(state, batch, rng) -> (state, metrics)``.
 
@@ -321,6 +303,7 @@ def make_train_step(
             up (:func:`batch_loss`).
         push_guards, input_guards: the guards of the push-forward steps and of the input
             frames (:func:`batch_loss`; ``None``: off).
+        start_speed_noise: the noise on the start speed (:func:`batch_loss`; 0: off).
         average_from: with a state that carries an ``average`` (weight averaging), the number
             of steps done before the first averaged one: until then the average follows the
             weights, from then on it is their running mean (:func:`average_weights`).
@@ -344,7 +327,7 @@ def make_train_step(
                 flat_batch=flat_batch, clot_mean_weight=clot_mean_weight,
                 wall_loss_weight=wall_loss_weight, speedup_weight=speedup_weight,
                 speedup_fraction=speedup_fraction, push_guards=push_guards,
-                input_guards=input_guards,
+                input_guards=input_guards, start_speed_noise=start_speed_noise,
             )
 
         (_, metrics), grads = jax.value_and_grad(loss_fn, has_aux=True)(state.params)

@@ -54,4 +54,5 @@ def train_step_options(cfg: TrainConfig, radius: float, total_steps: int) -> dic
         "average_from": total_steps - round(cfg.average_weights * total_steps),
         "push_guards": guards if cfg.pushforward_guards else None,
         "input_guards": guards if cfg.input_guards else None,
+        "start_speed_noise": cfg.start_speed_noise,
     }
