@@ -48,21 +48,10 @@ for d in heldout validation; do
         cp experiments/results/ladder_budget/guards_exit/$d/outlet_${m}_$k.json $OUT/bendvessel_$d/
     done; done
 done
-rows() {  # PREFIX RUN0 RUN1
-    local out="" m run
-    for m in s0 s1 e2; do
-        case $m in s0) run=$2;; s1) run=$3;; e2) run=$2+$3;; esac
-        out="$out $1_${m}_auto=$run:guards,tolerance_r=$AUTO $1_${m}_wallvel=$run:guards,tolerance_r=$AUTO,keep_velocity_wall=1 $1_${m}_contain=$run:guards,coherence=0 $1_${m}_alone=$run"
-    done
-    echo $out
-}
+source experiments/results/ladder_budget/pair_rows.sh  # rows, pair_tables
 ROWS="$(rows outlet $R/bv_outlet_s0 $R/bv_outlet_s1) $(rows start $P/bv_pace_s0 $P/bv_pace_s1)"
 T="BendVessel: the outlet recipe's seeds 0 and 1 (37 epochs) and their ensemble (e2), without (outlet) and with the clot's start speed as an input (start, --start-speed); guarded at auto (0.207 r), with the step after containment reading the velocity from before it (wallvel), with containment only (contain), and alone"
-python $CE $OUT/bendvessel_heldout data/bendvessel.h5 bendvessel_005,bendvessel_012,bendvessel_019 "$T, held out" $ROWS
-python $CE --sims-kind "validation simulation" $OUT/bendvessel_validation data/bendvessel.h5 bendvessel_009 "$T, validation" $ROWS
-L=""; for p in outlet start; do for m in s0 s1 e2; do for k in auto contain alone; do L="$L,${p}_${m}_$k"; done; done; done
-python experiments/results/ladder_budget/bendvessel_speed_noise/track_table.py --out $OUT/track.md \
-    $OUT/bendvessel_heldout ${L#,}
+pair_tables $OUT "$T" "outlet start" $ROWS
 
 # 4. How much each BendVessel step reads the start speed, teacher-forced (held out, before the
 # exit).
