@@ -21,7 +21,7 @@ from thrombojax.errors import ConfigError
 from thrombojax.eval.drift import speed_carry
 from thrombojax.models.registry import identity_stats
 from thrombojax.simulator.rollout import unroll
-from thrombojax.simulator.start_speed import start_speed_feature
+from thrombojax.simulator.start_speed import scale_start_speed, start_speed_feature
 from thrombojax.simulator.step import make_step
 from thrombojax.types import NodeType
 
@@ -225,8 +225,8 @@ def _start_gain_after_training(start_speed_noise: float) -> float:
     params = train_tiny_step(step, window_batch(windows), STATS, speed_noise=0.3,
                              start_speed_noise=start_speed_noise)
     frames, nt, mask = ring_clot_window(0.05, shear=0.01, seed=7)
-    x_prev = jnp.concatenate([frames[:2], frames[:1]])  # start frames s_0, s_1; then s_0
-    faster = x_prev.at[1].set(frames[0] + 1.1 * (frames[1] - frames[0]))
+    x_prev = step.previous(frames, 1, start_from=1)  # start frames s_0, s_1; then s_0
+    faster = scale_start_speed(x_prev, 1.1)
     clot = np.asarray((nt == NodeType.CLOT) & mask)
     moves = [np.asarray(step(params, STATS, p, frames[1], nt, mask).positions - frames[1])
              [clot, 0].mean() for p in (x_prev, faster)]

@@ -42,7 +42,7 @@ import jax.numpy as jnp
 
 from thrombojax.types import clot_mask
 
-__all__ = ["start_speed_feature", "jitter_start_speed"]
+__all__ = ["start_speed_feature", "scale_start_speed", "jitter_start_speed"]
 
 
 def start_speed_feature(start_frames: jax.Array, node_type: jax.Array, mask: jax.Array,
@@ -58,12 +58,22 @@ def start_speed_feature(start_frames: jax.Array, node_type: jax.Array, mask: jax
     return jnp.where(clot, speed, 0.0)[:, None]
 
 
+def scale_start_speed(x_prev: jax.Array, factor, rest: bool = False) -> jax.Array:
+    """``x_prev`` (a step's, or a window's lead frames) with its start frame ``s_c`` moved to
+    ``s_{c-1} + factor (s_c - s_{c-1})``: every node's start motion, and so the clot's start
+    speed (:func:`start_speed_feature`), scaled by ``|factor|``; every other frame unchanged.
+    The start frames follow the rest frame when ``rest``
+    (:func:`thrombojax.simulator.previous.start_frames`). Jittable."""
+    x_prev = jnp.asarray(x_prev)
+    before, start = x_prev[..., int(rest), :, :], x_prev[..., int(rest) + 1, :, :]
+    return x_prev.at[..., int(rest) + 1, :, :].set(before + factor * (start - before))
+
+
 def jitter_start_speed(key: jax.Array, lead: jax.Array, std: float) -> jax.Array:
     """A window's lead frames ``lead`` (``[L, N, 3]``, the two start frames ``s_{c-1}, s_c``
-    last) with ``s_c`` moved to ``s_{c-1} + (1 + e) (s_c - s_{c-1})``, ``e ~ N(0, std^2)`` one
-    draw: every node's start motion, and so the clot's start speed
-    (:func:`start_speed_feature`), scaled by ``|1 + e|``; the other lead frames unchanged.
-    ``std = 0`` returns ``lead`` itself. Jittable (``std`` static)."""
+    last) with the start speed scaled by ``1 + e``, ``e ~ N(0, std^2)`` one draw
+    (:func:`scale_start_speed`); the other lead frames unchanged. ``std = 0`` returns ``lead``
+    itself. Jittable (``std`` static)."""
     if not std >= 0:
         raise ValueError(f"start-speed noise: std must be >= 0, got {std!r}")
     if std == 0:
@@ -72,5 +82,4 @@ def jitter_start_speed(key: jax.Array, lead: jax.Array, std: float) -> jax.Array
         raise ValueError(f"start-speed noise needs the lead frames [L >= 2, N, 3] with the two "
                          f"start frames last, got shape {tuple(lead.shape)}")
     factor = 1.0 + std * jax.random.normal(key, (), lead.dtype)
-    start = lead[-2] + factor * (lead[-1] - lead[-2])
-    return lead.at[-1].set(start)
+    return scale_start_speed(lead, factor, rest=lead.shape[0] > 2)  # 3 frames: rest first

@@ -32,6 +32,7 @@ from thrombojax.io.hdf5 import open_dataset
 from thrombojax.io.outputs import atomic_write_text, check_targets
 from thrombojax.simulator.guard_set import build_guards
 from thrombojax.simulator.rollout import rollout_with_corrections
+from thrombojax.simulator.start_speed import scale_start_speed
 from thrombojax.train.state import load_trained
 from thrombojax.types import clot_mask
 
@@ -49,9 +50,7 @@ def final_errors(tr, ds, name, start, tolerance_r):
     speed = np.linalg.norm(np.diff(pos[:, clot].mean(axis=1), axis=0), axis=1)
     out = []
     for factor in (1.0, speed[start:].mean() / speed[start - 1]):
-        prev = np.array(step.previous(pos, start))
-        lead = int(step.rest_edges)  # the start frames follow the rest frame
-        prev[lead + 1] = prev[lead] + factor * (prev[lead + 1] - prev[lead])
+        prev = scale_start_speed(step.previous(pos, start), factor, rest=step.rest_edges)
         pred, _ = rollout_with_corrections(step, tr.params, tr.stats, prev, pos[start], nt, mask,
                                            n, guards=guards)
         out.append(float(centroid_error(np.asarray(pred), pos[start + 1:], clot)[-1]) / r)
