@@ -228,6 +228,11 @@ def _add_train(sub) -> None:
                    "--start-speed: every training window's start speed scaled by 1 + e, "
                    "e ~ N(0, F^2), so the step cannot tell its training simulations apart by it "
                    "(a fraction; default 0: off)")
+    p.add_argument("--start-span", type=int, metavar="K", help="with --start-speed: the start "
+                   "speed is the clot's mean speed over the K frames up to the rollout's start "
+                   "(frames before 0: the clot at rest); the start frame K (e.g. 5 on "
+                   "BendVessel) gives its travel from rest, which tells how soon it broke free "
+                   "(default 1: the speed into the start frame)")
     p.add_argument("--wall-signed", action="store_true", default=None, help="with "
                    "--wall-features: the features are the signed distance to the wall "
                    "(positive outside) and its outward normal, which tell a node that crossed "

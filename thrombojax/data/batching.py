@@ -181,7 +181,7 @@ def make_batch(
     epoch: int = 0,
     position: int = 0,
     rest: bool = False,
-    start_speed: tuple[int, int] | None = None,
+    start_speed: tuple[int, ...] | None = None,
 ) -> Batch:
     """Assemble one padded batch on the host.
 
@@ -194,10 +194,11 @@ def make_batch(
             ``(seed, epoch, position, b)``.
         rest: every window is led by its simulation's first frame, the clot's rest state (same
             nodes; for a learned step with ``rest_edges``).
-        start_speed: ``(start, history)`` for a learned step with ``start_speed``: the window
-            (its frame t at ``t_w = first + history``) is led, after the rest frame, by the frames
-            ``c - 1, c`` with ``c = max(min(t_w, start), 1)``, ``start`` the frame the dataset's
-            rollouts start from (:mod:`thrombojax.simulator.start_speed`).
+        start_speed: ``(start, history[, span])`` for a learned step with ``start_speed``: the
+            window (its frame t at ``t_w = first + history``) is led, after the rest frame, by
+            the frames ``max(c - span, 0), c`` with ``c = max(min(t_w, start), 1)``, ``start`` the
+            frame the dataset's rollouts start from, ``span`` 1 by default
+            (:mod:`thrombojax.simulator.start_speed`).
     Returns:
         A :class:`Batch` of numpy arrays.
     """
@@ -226,7 +227,9 @@ def make_batch(
             frames[b, 0, :n] = store.positions[sim][0, idx]
         if start_speed is not None:
             c = max(min(t - 1 + int(start_speed[1]), int(start_speed[0])), 1)
-            frames[b, int(rest):int(rest) + 2, :n] = store.positions[sim][c - 1:c + 1][:, idx]
+            span = int(start_speed[2]) if len(start_speed) > 2 else 1
+            frames[b, int(rest):int(rest) + 2, :n] = store.positions[sim][[max(c - span, 0), c]][
+                :, idx]
         node_type[b, :n] = types[idx]
         mask[b, :n] = True
     return Batch(frames=frames, node_type=node_type, mask=mask, generated=entries[:, 1] > 0)

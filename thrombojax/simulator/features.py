@@ -76,5 +76,5 @@ def extra_features(step, stats, x_prev, x_cur, node_type, mask, velocity_scale, 
         extra.append(clot_section_features(x_cur, node_type, mask, scale=step.section_radius))
     if step.start_speed:
         extra.append(start_speed_feature(start_frames(step.rest_edges, x_prev), node_type, mask,
-                                  velocity_scale))
+                                         velocity_scale * step.start_speed))  # over K frames
     return jnp.concatenate(extra, axis=-1) if extra else None

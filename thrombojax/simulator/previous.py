@@ -13,9 +13,10 @@ history            rest_edges False     rest_edges True
 H >= 2             ``[H, N, 3]``         ``[1 + H, N, 3]`` (rest, s_{t-H} .. s_{t-1})
 =================  ===================  =============================================
 
-(leading batch axes allowed). With ``start_speed`` the step also reads the two frames of the
-clot's start speed, ``s_{c-1}, s_c`` with ``c`` the frame a rollout starts from (after the rest
-frame, before the history; :mod:`thrombojax.simulator.start_speed`). A rollout carries
+(leading batch axes allowed). With ``start_speed = K`` (an int >= 1; ``True`` is 1) the step also
+reads the two frames of the clot's start speed, ``s_{c-K}, s_c`` with ``c`` the frame a rollout
+starts from and frames before 0 frame 0 (after the rest frame, before the history;
+:mod:`thrombojax.simulator.start_speed`). A rollout carries
 ``x_prev`` from step to step with :func:`shift`, which keeps these lead frames and moves the
 others on, so every consumer of the step (rollouts, ensembles, the unrolled loss, evaluation)
 passes them along without knowing they are there.
@@ -35,11 +36,11 @@ __all__ = ["previous", "lead_with_rest", "last_previous", "history_frames", "res
 
 def lead_count(rest: bool, start_speed: bool = False) -> int:
     """Frames an ``x_prev`` holds before its history: the rest frame, then two start frames."""
-    return int(rest) + 2 * int(start_speed)
+    return int(rest) + 2 * bool(start_speed)
 
 
 def _stacked(history: int, rest: bool, start_speed: bool = False) -> bool:
-    return history > 1 or rest or start_speed
+    return history > 1 or rest or bool(start_speed)
 
 
 def previous(history: int, rest: bool, positions, t, rest_positions=None, *, start_speed=False,
@@ -48,7 +49,7 @@ def previous(history: int, rest: bool, positions, t, rest_positions=None, *, sta
 
     Frames before 0 are frame 0 (the clot at rest before the record starts). ``t`` is an int or
     an int array, every ``t >= 1``. The rest frame is ``positions[0]`` (a trajectory from its
-    first frame) and the start frames (``start_speed``) are ``s_{c-1}, s_c`` with ``c = min(t,
+    first frame) and the start frames (``start_speed`` K) are ``s_{c-K}, s_c`` with ``c = min(t,
     start_from)`` (``start_from`` None: ``c = t``, a rollout from ``t``), unless
     ``rest_positions`` (``[L, N, 3]``, the :func:`lead_count` lead frames; ``[N, 3]`` the rest
     frame alone) is given: a training window, which starts later. It is broadcast over the
@@ -69,7 +70,8 @@ def previous(history: int, rest: bool, positions, t, rest_positions=None, *, sta
         return lead_with_rest(rest_positions, frames)
     if start_speed:
         c = t if start_from is None else np.minimum(t, max(int(start_from), 1))
-        frames = lead_with_rest(positions[np.stack([c - 1, c], axis=-1)], frames)
+        first = np.maximum(c - int(start_speed), 0)  # frames before 0 are frame 0
+        frames = lead_with_rest(positions[np.stack([first, c], axis=-1)], frames)
     return lead_with_rest(positions[0], frames) if rest else frames
 
 

@@ -26,6 +26,17 @@ clots slide at their terminal speed from the rollout's start, four seeds of four
 nearer guarded, the exit's lag unchanged; on ClotEntry, whose clots enter at a speed that says
 nothing of their pace, the models end farther off. Off by default.
 
+The start span (``thrombojax train --start-speed --start-span K``, ``make_step(model,
+start_speed=K)``): the two frames are ``s_{c-K}, s_c`` instead (frames before 0 are frame 0,
+the clot at rest) and the feature is the centroid's mean speed over those K frames. With ``K``
+the rollout's start frame ``T0`` it is the clot's travel from rest to the rollout's start over
+``T0``: how soon the clot broke free, which the drive ratio sets (the drive ramps up and the
+clot moves once it beats the friction's hold) and which also sets how much faster the clot
+leaves the vessel than it slid through it (on BendVessel the travel by frame 5 correlates 0.81
+with that speed-up over the 20 simulations, the speed at frame 5 -0.41;
+``experiments/results/ladder_budget/start_span/README.md``). A window before ``T0`` reads its
+travel from rest over ``K`` frames, not its own speed.
+
 Start-speed noise (``thrombojax train --start-speed-noise F``, :func:`jitter_start_speed`): in
 training, every window's start speed is scaled by ``1 + e``, ``e ~ N(0, F^2)``, so that a step
 cannot tell its few training simulations apart by their start speeds and learns only what the
@@ -48,7 +59,8 @@ __all__ = ["start_speed_feature", "scale_start_speed", "jitter_start_speed"]
 def start_speed_feature(start_frames: jax.Array, node_type: jax.Array, mask: jax.Array,
                         velocity_scale) -> jax.Array:
     """``[N, 1]``: the speed of the real clot nodes' centroid from ``start_frames[0]`` to
-    ``start_frames[1]`` (``[2, N, 3]``) divided by ``velocity_scale``, on every real clot node;
+    ``start_frames[1]`` (``[2, N, 3]``) divided by ``velocity_scale`` (times the frames between
+    them for a mean speed), on every real clot node;
     zeros on every other node. Invariant to rotations and translations. Jittable."""
     clot = clot_mask(node_type, mask)
     w = clot.astype(start_frames.dtype)[:, None]

@@ -50,8 +50,8 @@ trajectory, :meth:`LearnedStep.shift` advances them in a rollout); ``H = 1`` kee
 ``[n_nodes, 3]`` = s_{t-1}. ``make_step(model, rest_edges=True)`` also reads the clot's rest
 state, the simulation's first frame, at the head of ``x_prev``
 (:mod:`thrombojax.simulator.previous`), and MeshGraphNet's clot-clot edges get their rest-state
-displacement beside the current one (DeepMind's deforming-plate model). ``start_speed=True``:
-also the clot's start speed (:mod:`thrombojax.simulator.start_speed`).
+displacement beside the current one (DeepMind's deforming-plate model). ``start_speed=K``:
+also the clot's start speed over K frames (:mod:`thrombojax.simulator.start_speed`).
 
 Prior: ``make_step(model, prior_radius=w)`` adds the vessel-following prior to constant
 velocity, and the model learns the rest (:mod:`thrombojax.simulator.step_options`).
@@ -166,8 +166,8 @@ class LearnedStep:
         rest_edges: the step also reads the clot's rest state (``x_prev`` led by the
             simulation's first frame, :mod:`thrombojax.simulator.previous`) and the model's
             edges get their rest-state displacement (a model that reads edge features only).
-        start_speed: the step also reads the clot's speed in two true frames a rollout keeps
-            (``x_prev`` holds them after the rest frame, :mod:`thrombojax.simulator.start_speed`).
+        start_speed: K >= 1 (``True``: 1): the step also reads the clot's mean speed over the K
+            frames up to a rollout's start (:mod:`thrombojax.simulator.start_speed`); 0: off.
     """
 
     model: Surrogate
@@ -189,7 +189,7 @@ class LearnedStep:
     centre_pull: float = 0.0
     centre_unit: float = 0.0
     centre_tolerance: float = 0.0
-    start_speed: bool = False
+    start_speed: int = 0
 
     def __post_init__(self) -> None:
         check_step_options(self)
@@ -385,7 +385,7 @@ def make_step(model: Surrogate, frame: str = "global", wall_cutoff: float = 0.0,
               rest_edges: bool = False, clearance_radius: float = 0.0,
               section_radius: float = 0.0, centre_pull: float = 0.0,
               centre_unit: float = 0.0, centre_tolerance: float = 0.0,
-              start_speed: bool = False) -> LearnedStep:
+              start_speed: int = 0) -> LearnedStep:
     """The learned simulator of a surrogate in ``frame`` with the options of
     :class:`LearnedStep` (the radii are scaled lengths, 0: off; see the module docstring)."""
     return LearnedStep(model=model, frame=frame, grid=grid, history=history,
@@ -397,4 +397,4 @@ def make_step(model: Surrogate, frame: str = "global", wall_cutoff: float = 0.0,
                        shape_radius=float(shape_radius), clearance_radius=float(clearance_radius),
                        section_radius=float(section_radius), centre_pull=float(centre_pull),
                        centre_unit=float(centre_unit),
-                       centre_tolerance=float(centre_tolerance), start_speed=bool(start_speed))
+                       centre_tolerance=float(centre_tolerance), start_speed=int(start_speed))

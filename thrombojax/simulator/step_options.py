@@ -49,6 +49,9 @@ def check_step_options(step: Any) -> None:
     if not isinstance(step.history, int) or isinstance(step.history, bool) or step.history < 1:
         raise ConfigError(f"learned step: history must be an int >= 1 (frames before t), "
                           f"got {step.history!r}")
+    if not isinstance(step.start_speed, int) or step.start_speed < 0:
+        raise ConfigError(f"learned step: start_speed must be an int >= 0 (frames the start "
+                          f"speed spans; 0: off), got {step.start_speed!r}")
     if step.rest_edges and not getattr(step.model, "rest_edges", False):
         raise ConfigError(f"learned step: model '{step.model.name}' has no edge features "
                           f"to give rest-state displacements to (rest_edges: meshgraphnet)")

@@ -68,6 +68,7 @@ _RULES: dict[str, tuple[str, float, bool, bool]] = {
     "guard_coherence": ("float", 0.0, True, False),
     "curriculum_epochs": ("float", 0.0, True, False),
     "history": ("int", 1, True, False),
+    "start_span": ("int", 1, True, False),
 }
 
 
@@ -108,9 +109,9 @@ def check_train_values(cfg: Any) -> None:
     (:func:`thrombojax.train.memory.check_train_memory`; the training loop checks again with the
     dataset's sizes), ``tiny``, ``noise_walk``, ``stop_history_gradient``,
     ``uniform_rotation``, ``rest_edges``, ``start_speed`` (not with the guards of the
-    training; ``start_speed_noise`` only with it), ``input_guards``, ``pushforward_guards``
-    (only with ``pushforward_steps``) and ``wall_signed`` booleans (``wall_signed`` only with
-    ``wall_features``), ``history_noise`` only with ``history >= 2``,
+    training; ``start_speed_noise`` and ``start_span`` only with it), ``input_guards``,
+    ``pushforward_guards`` (only with ``pushforward_steps``) and ``wall_signed`` booleans
+    (``wall_signed`` only with ``wall_features``), ``history_noise`` only with ``history >= 2``,
     ``model_config`` an object; upper bounds in :data:`_HIGH`.
     """
     for name in _RULES:
@@ -135,6 +136,9 @@ def check_train_values(cfg: Any) -> None:
     if getattr(cfg, "start_speed_noise", 0.0) > 0 and not getattr(cfg, "start_speed", False):
         raise ConfigError("--start-speed-noise (start_speed_noise) needs --start-speed (it "
                           "perturbs the start speed the step reads)")
+    if getattr(cfg, "start_span", 1) != 1 and not getattr(cfg, "start_speed", False):
+        raise ConfigError("--start-span (start_span) needs --start-speed (it sets the frames "
+                          "the start speed is measured over)")
     if getattr(cfg, "centre_pull", 0.0) > 0 and not getattr(cfg, "follow_axis", 0.0) > 0:
         raise ConfigError("--centre-pull (centre_pull) needs --follow-axis W > 0 (it tilts the "
                           "velocities of the vessel-following prior)")

@@ -198,7 +198,8 @@ class TrainConfig:
             :mod:`thrombojax.simulator.previous`); every training window carries one more frame.
         start_speed: the step also reads the clot's start speed, its speed in the true frames a
             rollout starts from (:mod:`thrombojax.simulator.start_speed`); two more frames a window.
-            ``start_speed_noise`` F: in training that speed times ``1 + e``, ``e ~ N(0, F^2)``.
+            ``start_speed_noise`` F: in training that speed times ``1 + e``, ``e ~ N(0, F^2)``;
+            ``start_span`` K: its mean over the K frames before the start (from rest at ``T0``).
         history: frames before t the learned step reads (1: the velocity alone; H >= 2: also
             the H - 1 accelerations before t, :mod:`thrombojax.simulator.step`); windows grow
             by H - 1 frames.
@@ -275,6 +276,7 @@ class TrainConfig:
     rest_edges: bool = False
     start_speed: bool = False
     start_speed_noise: float = 0.0
+    start_span: int = 1
     wall_signed: bool = False
     wall_clot_mean: bool = False
     history: int = 1
@@ -303,10 +305,6 @@ class TrainConfig:
             raise ConfigError(f"bary_ratio must be >= 0, got {self.bary_ratio}")
         if self.nodes_per_sample is not None and self.nodes_per_sample < 1:
             raise ConfigError(f"nodes_per_sample must be >= 1, got {self.nodes_per_sample}")
-        if self.rollout_steps < 1:
-            raise ConfigError(f"rollout_steps must be >= 1, got {self.rollout_steps}")
-        if self.skip_frames < 0:
-            raise ConfigError(f"skip_frames must be >= 0, got {self.skip_frames}")
         if self.select_by not in SELECT_BY:
             raise ConfigError(f"select_by must be one of {list(SELECT_BY)}, got "
                               f"{self.select_by!r}")

@@ -219,7 +219,8 @@ def train(
     check_dense_inputs(cfg, budget, where=str(dataset_path))
     # training windows led by the rest frame
     lead = cfg.rest_edges or cfg.pushforward_guards or cfg.input_guards
-    start_speed = (skip_frames(ds), cfg.history) if cfg.start_speed else None  # 2 lead frames
+    start_speed = ((skip_frames(ds), cfg.history, cfg.start_span) if cfg.start_speed
+                   else None)  # 2 lead frames
     check_train_memory(estimate_train_memory(
         n_windows=len(train_store), n_val_windows=len(val_store) if val_store else 0,
         bary_ratio=cfg.bary_ratio, batch_size=batch_size, budget=budget,
@@ -247,7 +248,7 @@ def train(
                         wall_clot_mean=cfg.wall_clot_mean,
                         outlet_radius=cfg.outlet_features * radius,
                         shape_radius=cfg.shape_features * radius, rest_edges=cfg.rest_edges,
-                        start_speed=cfg.start_speed,
+                        start_speed=cfg.start_span * cfg.start_speed,
                         clearance_radius=cfg.clearance_features * radius,
                         section_radius=cfg.section_features * radius,
                         centre_pull=cfg.centre_pull, centre_unit=radius * (cfg.centre_pull > 0),

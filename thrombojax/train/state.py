@@ -115,7 +115,8 @@ class TrainedModel:
                          outlet_radius=float(self.config.get("outlet_radius", 0.0)),
                          shape_radius=float(self.config.get("shape_radius", 0.0)),
                          rest_edges=self.run.train.rest_edges,
-                         start_speed=bool(getattr(self.run.train, "start_speed", False)),
+                         start_speed=getattr(self.run.train, "start_span", 1) * bool(
+                             getattr(self.run.train, "start_speed", False)),
                          clearance_radius=float(self.config.get("clearance_radius", 0.0)),
                          section_radius=float(self.config.get("section_radius", 0.0)),
                          centre_pull=float(getattr(self.run.train, "centre_pull", 0.0)),
