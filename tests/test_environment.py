@@ -1,6 +1,6 @@
 """The environment every recorded result carries names the processor, not only its vendor."""
 
-from thrombojax.eval.tables import cpu_model, environment
+from thrombojax.eval.tables import cpu_model, environment, measured_line
 
 VM = """processor\t: 0
 vendor_id\t: AuthenticAMD
@@ -23,3 +23,12 @@ def test_cpu_model_keeps_family_and_model_numbers():
 def test_environment_records_the_processor():
     env = environment()
     assert env["cpu"] == cpu_model() and env["cpu"]
+
+
+def test_measured_line_names_date_processor_load_versions_and_command():
+    env = {**environment(), "date": "D", "cpu": "C", "cpu_count": 2, "device": "cpu:x",
+           "load_avg_1_5_15": [1.5, 1, 1], "allocator": "tcmalloc", "python": "3.x",
+           "jax": "0.y", "command": "run.py a b"}
+    assert measured_line(env) == ("Measured D on C (2 cores, cpu:x, load 1.5, allocator "
+                                  "tcmalloc); Python 3.x, jax 0.y. Command: run.py a b")
+    assert measured_line().startswith("Measured ")

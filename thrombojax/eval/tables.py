@@ -17,7 +17,7 @@ import optax
 from thrombojax import __version__
 from thrombojax.xla_options import MODEL_CPU_OPTIONS, TRAIN_CPU_OPTIONS, cpu_compiler_options
 
-__all__ = ["markdown_table", "environment", "cpu_model"]
+__all__ = ["markdown_table", "environment", "cpu_model", "measured_line"]
 
 
 def markdown_table(header: list[str], rows: list[list[Any]]) -> str:
@@ -88,3 +88,14 @@ def environment() -> dict:
         "numpy": np.__version__,
         "thrombojax": __version__,
     }
+
+
+def measured_line(env: dict | None = None) -> str:
+    """One sentence of where and how a table was measured, for the foot of a Markdown file:
+    date, processor, cores, device, load, allocator, Python and jax versions and the command
+    (of :func:`environment`, or ``env`` when given)."""
+    env = environment() if env is None else env
+    return (f"Measured {env['date']} on {env['cpu']} ({env['cpu_count']} cores, "
+            f"{env['device']}, load {env['load_avg_1_5_15'][0]}, allocator "
+            f"{env['allocator']}); Python {env['python']}, jax {env['jax']}. "
+            f"Command: {env['command']}")

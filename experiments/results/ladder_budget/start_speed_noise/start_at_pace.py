@@ -12,7 +12,7 @@ Run from the repository root::
 
 It writes (never over an existing OUT.md) and prints a Markdown table, each run's last
 checkpoint, at most 2,048 nodes, coherence at ``TOLERANCE_R`` vessel radii; then the date,
-command, device, versions, CPU and load (:func:`thrombojax.eval.tables.environment`).
+command, device, versions, CPU and load (:func:`thrombojax.eval.tables.measured_line`).
 """
 
 from __future__ import annotations
@@ -27,7 +27,7 @@ from thrombojax.data.augment import subsample_indices
 from thrombojax.data.radius import vessel_radius
 from thrombojax.eval.metrics import centroid_error
 from thrombojax.eval.single_step import scaled_simulation
-from thrombojax.eval.tables import environment
+from thrombojax.eval.tables import measured_line
 from thrombojax.io.hdf5 import open_dataset
 from thrombojax.io.outputs import atomic_write_text, check_targets
 from thrombojax.simulator.guard_set import build_guards
@@ -77,11 +77,7 @@ def main(argv):
             s, p, true, paced = final_errors(tr, ds, name, start, tol)
             lines.append(f"| {label} | {name} | {s:.3f} | {p:.3f} | {true:.2f} | {paced:.2f} |")
             print(lines[-1], flush=True)
-    env = environment()
-    lines += ["", f"Measured {env['date']} on {env['cpu']} ({env['cpu_count']} cores, "
-              f"{env['device']}, load {env['load_avg_1_5_15'][0]}, allocator "
-              f"{env['allocator']}); Python {env['python']}, jax {env['jax']}. "
-              f"Command: {env['command']}"]
+    lines += ["", measured_line()]
     atomic_write_text(out, "\n".join(lines) + "\n")
     print("\n".join(lines))
 
