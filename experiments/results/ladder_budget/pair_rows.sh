@@ -1,7 +1,19 @@
 #!/bin/bash
-# Shell functions the BendVessel commands of ./start_speed/ and ./start_speed_noise/ share
-# (sourced by their commands.sh, which set CE, the cross_eval.py script, and AUTO, the coherence
-# tolerance in vessel radii).
+# Shell functions the BendVessel commands of ./start_speed/, ./start_speed_noise/ and
+# ./start_span/ share (sourced by their commands.sh, which set CE, the cross_eval.py script, and
+# AUTO, the coherence tolerance in vessel radii).
+
+copy_rows() {  # SRC OUT PREFIXES: SRC's BendVessel row JSONs (held out and validation) of the
+               # (space-separated) PREFIXES' seeds and ensemble (s0, s1, e2), each guarded at
+               # auto, wallvel, contain and alone, copied into OUT, where cross_eval.py reuses them
+    local d p m k
+    for d in heldout validation; do
+        mkdir -p $2/bendvessel_$d
+        for p in $3; do for m in s0 s1 e2; do for k in auto alone wallvel contain; do
+            cp $1/bendvessel_$d/${p}_${m}_$k.json $2/bendvessel_$d/
+        done; done; done
+    done
+}
 
 rows() {  # PREFIX RUN0 RUN1: cross_eval.py rows of two seeds and their ensemble (s0, s1, e2),
           # each guarded at AUTO, with the velocity kept through containment (wallvel), with

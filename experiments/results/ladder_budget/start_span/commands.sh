@@ -40,13 +40,8 @@ train_ce 15 & train_ce 16 & wait
 # ensemble, guarded at auto (0.207 r), wallvel, containment only and alone; the track split;
 # then, teacher-forced, the exit's speed-up each step predicts per simulation (exit_read.py).
 AUTO=0.20727364718914032
-for d in heldout validation; do
-    mkdir -p $OUT/bendvessel_$d
-    for p in outlet start; do for m in s0 s1 e2; do for k in auto alone wallvel contain; do
-        cp $SS/bendvessel_$d/${p}_${m}_$k.json $OUT/bendvessel_$d/
-    done; done; done
-done
-source experiments/results/ladder_budget/pair_rows.sh  # rows, pair_tables
+source experiments/results/ladder_budget/pair_rows.sh  # copy_rows, rows, pair_tables
+copy_rows $SS $OUT "outlet start"
 ROWS="$(rows outlet $R/bv_outlet_s0 $R/bv_outlet_s1) $(rows start $P/bv_pace_s0 $P/bv_pace_s1) $(rows span $S/bv_span_s0 $S/bv_span_s1)"
 T="BendVessel: the outlet recipe's seeds 0 and 1 (37 epochs) and their ensemble (e2), without the start speed (outlet), with the speed into the rollout's start frame (start, --start-speed) and with the mean speed from rest to it (span, --start-speed --start-span 5); guarded at auto (0.207 r), with the step after containment reading the velocity from before it (wallvel), with containment only (contain), and alone"
 pair_tables $OUT "$T" "outlet start span" $ROWS

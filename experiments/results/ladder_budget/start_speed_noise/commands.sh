@@ -49,13 +49,8 @@ cp $S/clotentry_gain.md $OUT/clotentry_gain.md   # ssn_s13: the noised step (noi
 # ensemble, guarded at auto (0.207 r), wallvel, containment only and alone; the track split;
 # the teacher-forced gain.
 AUTO=0.20727364718914032
-for d in heldout validation; do
-    mkdir -p $OUT/bendvessel_$d
-    for p in outlet start; do for m in s0 s1 e2; do for k in auto alone wallvel contain; do
-        cp $SS/bendvessel_$d/${p}_${m}_$k.json $OUT/bendvessel_$d/
-    done; done; done
-done
-source experiments/results/ladder_budget/pair_rows.sh  # rows, pair_tables
+source experiments/results/ladder_budget/pair_rows.sh  # copy_rows, rows, pair_tables
+copy_rows $SS $OUT "outlet start"
 ROWS="$(rows outlet $R/bv_outlet_s0 $R/bv_outlet_s1) $(rows start $P/bv_pace_s0 $P/bv_pace_s1) $(rows noise $S/bv_ssn_s0 $S/bv_ssn_s1)"
 T="BendVessel: the outlet recipe's seeds 0 and 1 (37 epochs) and their ensemble (e2), without the start speed (outlet), with it (start, --start-speed) and with it noised in training (noise, --start-speed --start-speed-noise 0.3); guarded at auto (0.207 r), with the step after containment reading the velocity from before it (wallvel), with containment only (contain), and alone"
 pair_tables $OUT "$T" "outlet start noise" $ROWS
