@@ -26,7 +26,7 @@ from flax import struct
 
 from thrombojax.data.augment import subsample_indices
 from thrombojax.data.scaling import Scaling
-from thrombojax.data.windows import window_times
+from thrombojax.data.windows import start_pair, window_times
 from thrombojax.errors import ConfigError, DatasetError
 from thrombojax.graph.frame import vessel_frame
 from thrombojax.io.hdf5 import Dataset
@@ -226,10 +226,8 @@ def make_batch(
         if rest:
             frames[b, 0, :n] = store.positions[sim][0, idx]
         if start_speed is not None:
-            c = max(min(t - 1 + int(start_speed[1]), int(start_speed[0])), 1)
-            span = int(start_speed[2]) if len(start_speed) > 2 else 1
-            frames[b, int(rest):int(rest) + 2, :n] = store.positions[sim][[max(c - span, 0), c]][
-                :, idx]
+            pair = start_pair(t - 1 + int(start_speed[1]), start_speed[0], *start_speed[2:])
+            frames[b, int(rest):int(rest) + 2, :n] = store.positions[sim][list(pair)][:, idx]
         node_type[b, :n] = types[idx]
         mask[b, :n] = True
     return Batch(frames=frames, node_type=node_type, mask=mask, generated=entries[:, 1] > 0)

@@ -16,7 +16,7 @@ import numpy as np
 
 from thrombojax.errors import ConfigError
 
-__all__ = ["window_times"]
+__all__ = ["window_times", "start_pair"]
 
 
 def window_times(n_frames: int, *, skip: int = 0, length: int = 3) -> np.ndarray:
@@ -36,3 +36,12 @@ def window_times(n_frames: int, *, skip: int = 0, length: int = 3) -> np.ndarray
     if length < 3:
         raise ConfigError(f"windows: length={length} must be >= 3 frames")
     return np.arange(max(1, skip), max(n_frames - length + 2, 0), dtype=np.int64)
+
+
+def start_pair(t, start=None, span: int = 1):
+    """The two frames ``(max(c - span, 0), c)`` a learned step's start speed is measured
+    between, for frame(s) ``t >= 1`` (int or int array): ``c = min(t, start)`` (``start`` None:
+    ``c = t``, a rollout from ``t``), frames before 0 being frame 0, the clot at rest
+    (:mod:`thrombojax.simulator.start_speed`)."""
+    c = np.asarray(t) if start is None else np.minimum(t, max(int(start), 1))
+    return np.maximum(c - int(span), 0), c

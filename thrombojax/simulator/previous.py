@@ -28,6 +28,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from thrombojax.data.windows import start_pair
 from thrombojax.errors import ConfigError
 
 __all__ = ["previous", "lead_with_rest", "last_previous", "history_frames", "rest_frame",
@@ -69,9 +70,8 @@ def previous(history: int, rest: bool, positions, t, rest_positions=None, *, sta
     if rest_positions is not None:
         return lead_with_rest(rest_positions, frames)
     if start_speed:
-        c = t if start_from is None else np.minimum(t, max(int(start_from), 1))
-        first = np.maximum(c - int(start_speed), 0)  # frames before 0 are frame 0
-        frames = lead_with_rest(positions[np.stack([first, c], axis=-1)], frames)
+        pair = np.stack(start_pair(t, start_from, int(start_speed)), axis=-1)
+        frames = lead_with_rest(positions[pair], frames)
     return lead_with_rest(positions[0], frames) if rest else frames
 
 

@@ -48,7 +48,7 @@ def speeds(tr, ds, name, start):
     pos, nt = full[:, idx], full_nt[idx]
     clot, last = clot_mask(nt), pos.shape[0] - 1
     frames = np.arange(start + 1, last)  # predict s_{t+1} from the true frames up to t
-    prev = np.stack([np.asarray(step.previous(pos, int(t), start_from=start)) for t in frames])
+    prev = np.asarray(step.previous(pos, frames, start_from=start))  # [frames, ...] at once
     nxt = np.asarray(batched_next(step, tr.params, tr.stats, jnp.asarray(prev, jnp.float32),
                                   jnp.asarray(pos[frames]), jnp.asarray(nt),
                                   jnp.ones(len(nt), bool)))
