@@ -1,7 +1,7 @@
 #!/bin/bash
-# Shell functions the BendVessel commands of ./start_speed/, ./start_speed_noise/ and
-# ./start_span/ share (sourced by their commands.sh, which set CE, the cross_eval.py script, and
-# AUTO, the coherence tolerance in vessel radii).
+# Shell functions the BendVessel commands of ./start_speed/, ./start_speed_noise/,
+# ./start_span/ and ./span_speedup/ share (sourced by their commands.sh, which set CE, the
+# cross_eval.py script, and AUTO, the coherence tolerance in vessel radii).
 
 copy_rows() {  # SRC OUT PREFIXES: SRC's BendVessel row JSONs (held out and validation) of the
                # (space-separated) PREFIXES' seeds and ensemble (s0, s1, e2), each guarded at
