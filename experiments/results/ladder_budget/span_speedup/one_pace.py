@@ -27,6 +27,7 @@ import sys
 import numpy as np
 
 from thrombojax.data.radius import vessel_radius
+from thrombojax.eval.metrics import clot_centroids
 from thrombojax.eval.tables import measured_line
 from thrombojax.io.hdf5 import open_dataset
 from thrombojax.io.outputs import atomic_write_text, check_targets
@@ -40,7 +41,7 @@ EXIT = 6
 def travel(ds, sim: str, t0: int, unit: float) -> np.ndarray:
     """The clot centroid's travel, r, ``[2]``: from ``T0`` to the exit, and in the exit."""
     pos = np.asarray(ds.positions(sim), np.float64)
-    centre = pos[:, clot_mask(np.asarray(ds.node_type(sim)))].mean(axis=1)
+    centre = clot_centroids(pos, clot_mask(np.asarray(ds.node_type(sim))))
     steps = np.linalg.norm(np.diff(centre[t0:], axis=0), axis=1) / unit
     return np.array([steps[:-EXIT].sum(), steps[-EXIT:].sum()])
 

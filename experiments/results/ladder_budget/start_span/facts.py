@@ -22,6 +22,7 @@ import sys
 import numpy as np
 
 from thrombojax.data.radius import vessel_radius
+from thrombojax.eval.metrics import clot_centroids
 from thrombojax.eval.tables import measured_line
 from thrombojax.io.hdf5 import open_dataset
 from thrombojax.io.outputs import atomic_write_text, check_targets
@@ -35,7 +36,7 @@ COLUMNS = ("drive ratio", "flow speed", "mean speed 0..T0", "speed into T0",
 def simulation_row(ds, sim, t0: int, unit: float) -> list[float]:
     """The :data:`COLUMNS` of one simulation (speeds in vessel radii per frame)."""
     pos = np.asarray(ds.positions(sim), np.float64)
-    centre = pos[:, clot_mask(np.asarray(ds.node_type(sim)))].mean(axis=1)
+    centre = clot_centroids(pos, clot_mask(np.asarray(ds.node_type(sim))))
     speed = np.linalg.norm(np.diff(centre, axis=0), axis=1) / unit
     travel = np.linalg.norm(centre[t0] - centre[0]) / unit
     return [np.nan, np.nan, travel / t0, speed[t0 - 1], speed[t0:].mean(),
